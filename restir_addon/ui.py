@@ -1,0 +1,9 @@
+"""Render Properties panels."""
+
+
+def register():
+    pass
+
+
+def unregister():
+    pass
