@@ -2,19 +2,21 @@
 
 import bpy
 
+from . import final
+from .passes import register_passes
+
 
 class RestirGIRenderEngine(bpy.types.RenderEngine):
     bl_idname = "RESTIR_GI"
     bl_label = "ReSTIR GI"
     bl_use_preview = False
-    bl_use_shading_nodes_custom = False
+    bl_use_postprocess = True
 
     def render(self, depsgraph):
-        scale = depsgraph.scene.render.resolution_percentage / 100.0
-        width = int(depsgraph.scene.render.resolution_x * scale)
-        height = int(depsgraph.scene.render.resolution_y * scale)
-        result = self.begin_result(0, 0, width, height)
-        self.end_result(result)
+        final.render(self, depsgraph)
+
+    def update_render_passes(self, scene=None, renderlayer=None):
+        register_passes(self, scene, renderlayer)
 
 
 def register():

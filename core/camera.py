@@ -1,0 +1,110 @@
+"""Blender's camera model: primary rays for whole images, and projection back.
+
+Follows Blender's view plane: the sensor is fitted to one image axis (AUTO
+picks the larger one), shift is in units of that axis, perspective cameras
+clip along the view axis between clip_start and clip_end. Pixel (x, y) has
+y = 0 at the bottom row, as Blender's render result stores it.
+"""
+
+import numpy as np
+
+from .sampling import Distribution1D
+
+
+def _fit(camera, width, height):
+    """(size of the fitted sensor axis, number of pixels along it)."""
+    fit = camera.sensor_fit
+    if fit == "AUTO":
+        return camera.sensor_width, float(max(width, height))
+    if fit == "HORIZONTAL":
+        return camera.sensor_width, float(width)
+    return camera.sensor_height, float(height)
+
+
+def _frame(camera):
+    """Camera position and orthonormal axes (right, up, back) in world space."""
+    m = np.asarray(camera.to_world, dtype=np.float64)
+    axes = m[:3, :3]
+    norms = np.linalg.norm(axes, axis=0)
+    axes = axes / np.where(norms > 0, norms, 1)
+    return m[:3, 3], axes
+
+
+def pixel_size(camera, width, height):
+    """Size of one pixel on the image plane at unit distance (persp) or in world units (ortho)."""
+    sensor, view = _fit(camera, width, height)
+    if camera.projection == "ORTHO":
+        return camera.ortho_scale / view, view
+    return sensor / max(camera.lens, 1e-6) / view, view
+
+
+def generate_rays(camera, width, height, pixel_xy):
+    """Rays through film positions pixel_xy (N, 2) in pixel units (x + 0.5 is a centre).
+
+    Returns origins, unit directions and tmax (clip_end), origins already moved
+    to clip_start along the ray.
+    """
+    size, view = pixel_size(camera, width, height)
+    pos, axes = _frame(camera)
+    x = (pixel_xy[:, 0] - 0.5 * width + camera.shift_x * view) * size
+    y = (pixel_xy[:, 1] - 0.5 * height + camera.shift_y * view) * size
+    n = len(pixel_xy)
+    if camera.projection == "ORTHO":
+        local_o = np.stack([x, y, np.full(n, -camera.clip_start)], axis=1)
+        origins = pos + local_o @ axes.T
+        d = np.broadcast_to(-axes[:, 2], (n, 3))
+        tmax = np.full(n, camera.clip_end - camera.clip_start)
+    else:
+        local_d = np.stack([x, y, -np.ones(n)], axis=1)
+        length = np.linalg.norm(local_d, axis=1)
+        d = (local_d / length[:, None]) @ axes.T
+        origins = pos + d * (camera.clip_start * length)[:, None]
+        tmax = (camera.clip_end - camera.clip_start) * length
+    return (origins.astype(np.float32), np.ascontiguousarray(d, dtype=np.float32),
+            np.maximum(tmax, 1e-6).astype(np.float32))
+
+
+def project(camera, width, height, points):
+    """World points (N, 3) to film positions (N, 2) in pixels and view depth (N,).
+    Points behind a perspective camera get depth <= 0."""
+    size, view = pixel_size(camera, width, height)
+    pos, axes = _frame(camera)
+    local = (np.asarray(points, np.float64) - pos) @ axes
+    depth = -local[:, 2]
+    if camera.projection == "ORTHO":
+        px, py = local[:, 0], local[:, 1]
+    else:
+        safe = np.where(depth > 1e-12, depth, 1e-12)
+        px, py = local[:, 0] / safe, local[:, 1] / safe
+    fx = px / size + 0.5 * width - camera.shift_x * view
+    fy = py / size + 0.5 * height - camera.shift_y * view
+    return np.stack([fx, fy], axis=1).astype(np.float32), depth.astype(np.float32)
+
+
+def view_depth(camera, points):
+    """Distance along the camera's view axis (Blender's Z/Depth pass)."""
+    pos, axes = _frame(camera)
+    return (-(np.asarray(points, np.float64) - pos) @ axes[:, 2]).astype(np.float32)
+
+
+class PixelFilter:
+    """Importance sampling of Cycles' Blackman-Harris pixel filter, separably in x
+    and y, so every sample has weight one (filter importance sampling)."""
+
+    def __init__(self, width=1.5, bins=256):
+        self.width = float(width)
+        if self.width <= 0:
+            self.dist = None
+            return
+        x = (np.arange(bins) + 0.5) / bins  # in [0, 1] across the filter support
+        a = 2.0 * np.pi * x
+        w = 0.35875 - 0.48829 * np.cos(a) + 0.14128 * np.cos(2 * a) - 0.01168 * np.cos(3 * a)
+        self.dist = Distribution1D(np.maximum(w, 0.0))
+
+    def offsets(self, u):
+        """(N, 2) offsets from the pixel centre for uniforms u (N, 2)."""
+        if self.dist is None:
+            return np.zeros_like(u)
+        x, _ = self.dist.sample_continuous(u[:, 0])
+        y, _ = self.dist.sample_continuous(u[:, 1])
+        return (np.stack([x, y], axis=1) - 0.5) * self.width

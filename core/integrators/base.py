@@ -1,0 +1,105 @@
+"""What every integrator shares: the render context and the stages that trace
+shadow rays for next-event estimation and continue paths by BSDF sampling."""
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .. import bsdf, samplers
+from ..accel import Accel, offset_origins
+from ..lights import LightSet
+from ..sampling import dot, orthonormal_basis, power_heuristic, to_local, to_world
+
+RAY_EPS_RELATIVE = 1e-5     # origin offset relative to the scene's extent
+
+
+@dataclass
+class RenderContext:
+    """A scene made ready for tracing: acceleration structure, lights, ray offset."""
+    scene: object
+    accel: Accel
+    lights: LightSet
+    eps: float
+
+    @staticmethod
+    def build(scene, threads=None):
+        eps = RAY_EPS_RELATIVE * scene.extent()
+        return RenderContext(scene, Accel.from_scene(scene, threads), LightSet(scene), eps)
+
+    def close(self):
+        self.accel.close()
+
+
+@dataclass
+class ShadingFrame:
+    """BSDF parameters and the local frame at a batch of surface hits."""
+    params: bsdf.BSDFParams
+    t: np.ndarray
+    b: np.ndarray
+    wo_local: np.ndarray
+
+    @staticmethod
+    def at(scene, surf):
+        t, b = orthonormal_basis(surf.ns)
+        return ShadingFrame(bsdf.bsdf_params(scene.materials, surf.material), t, b,
+                            to_local(surf.wo, t, b, surf.ns))
+
+    def local(self, surf, w):
+        return to_local(w, self.t, self.b, surf.ns)
+
+    def world(self, surf, w_local):
+        return to_world(w_local, self.t, self.b, surf.ns).astype(np.float32)
+
+
+def direct_light(ctx, surf, frame, seeds, bounce, mis=True):
+    """Next-event estimation at surface hits: one light sample and one shadow ray each.
+
+    Returns the reflected radiance toward wo, (N, 3). With ``mis`` the sample is
+    weighted against BSDF sampling by the power heuristic; without it (a path's
+    last vertex, whose BSDF ray is never traced) it has weight one.
+    """
+    n = len(surf)
+    out = np.zeros((n, 3), np.float32)
+    if n == 0 or ctx.lights.count == 0:
+        return out
+    u_sel = samplers.uniform(seeds, samplers.bounce_dim(bounce, samplers.D_LIGHT_SELECT))
+    u = samplers.uniform2(seeds, samplers.bounce_dim(bounce, samplers.D_LIGHT_UV))
+    ls = ctx.lights.sample(surf.p, u_sel, u)
+    wi_local = frame.local(surf, ls.wi)
+    f = bsdf.evaluate(frame.params, frame.wo_local, wi_local)
+    cos = np.maximum(wi_local[:, 2], 0.0)
+    above = dot(ls.wi, surf.ng) > 0       # reflection only: the light must be on wo's side
+    if mis:
+        pdf_b = bsdf.pdf(frame.params, frame.wo_local, wi_local)
+        w = np.where(ls.delta, 1.0, power_heuristic(ls.pdf, pdf_b))
+    else:
+        w = np.ones(n, np.float32)
+    with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
+        contrib = f * ls.radiance * (cos * w / np.where(ls.pdf > 0, ls.pdf, 1.0))[:, None]
+    live = above & (ls.pdf > 0) & (contrib.max(axis=1) > 0) & np.isfinite(contrib).all(axis=1)
+    rows = np.nonzero(live)[0]
+    if len(rows) == 0:
+        return out
+    o = offset_origins(surf.p[rows], surf.ng[rows], ls.wi[rows], ctx.eps)
+    tmax = np.maximum(ls.dist[rows] * (1.0 - 1e-4) - 2.0 * ctx.eps, 0.0)
+    blocked = ctx.accel.occluded(o, ls.wi[rows], tmax)
+    out[rows] = np.where(blocked[:, None], 0.0, contrib[rows])
+    return out
+
+
+def sample_continuation(ctx, surf, frame, seeds, bounce):
+    """BSDF-sample one new direction per hit.
+
+    Returns (wi world (N, 3), weight f cos / pdf (N, 3), pdf (N,), valid (N,) bool).
+    """
+    u_lobe = samplers.uniform(seeds, samplers.bounce_dim(bounce, samplers.D_LOBE))
+    u = samplers.uniform2(seeds, samplers.bounce_dim(bounce, samplers.D_BSDF_UV))
+    wi_local, f, pdf = bsdf.sample(frame.params, frame.wo_local, u_lobe, u)
+    wi = frame.world(surf, wi_local)
+    cos = np.maximum(wi_local[:, 2], 0.0)
+    valid = (pdf > 0) & (dot(wi, surf.ng) > 0)
+    with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
+        weight = f * (cos / np.where(pdf > 0, pdf, 1.0))[:, None]
+    valid &= np.isfinite(weight).all(axis=1) & (weight.max(axis=1) > 0)
+    weight = np.where(valid[:, None], weight, 0.0).astype(np.float32)
+    return wi, weight, pdf, valid

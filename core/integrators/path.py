@@ -1,0 +1,115 @@
+"""The reference path tracer, written as wavefront stages over whole batches.
+
+Per bounce: next-event estimation (light chosen in proportion to power, MIS
+with BSDF sampling), BSDF sampling of the continuation, Russian roulette,
+trace, then emission found by the continuation rays (analytic lights crossed,
+emissive triangles hit, the world on escape) weighted by MIS.
+
+``radiance_from_surface`` is what ReSTIR GI calls to estimate the outgoing
+radiance of its samples: it starts at given surface hits, excludes their own
+emission, and is a pure function of the path seeds.
+"""
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .. import samplers
+from ..accel import offset_origins
+from ..camera import generate_rays, view_depth
+from ..interaction import surface_hits
+from ..sampling import luminance, power_heuristic
+from .base import ShadingFrame, direct_light, sample_continuation
+
+RR_START_BOUNCE = 3
+
+
+def radiance_from_surface(ctx, surf, seeds, bounce0, max_bounces):
+    """Radiance reflected at ``surf`` toward ``surf.wo`` (its own emission excluded).
+
+    bounce0 is the bounce index of ``surf`` (0 for camera hits); the path ends
+    after NEE at bounce ``max_bounces``. Returns (N, 3) float32.
+    """
+    scene = ctx.scene
+    n = len(surf)
+    L = np.zeros((n, 3), np.float32)
+    alive = np.arange(n)
+    beta = np.ones((n, 3), np.float32)
+    for bounce in range(bounce0, max_bounces + 1):
+        if len(alive) == 0:
+            break
+        s = seeds[alive]
+        frame = ShadingFrame.at(scene, surf)
+        last = bounce == max_bounces
+        L[alive] += beta * direct_light(ctx, surf, frame, s, bounce, mis=not last)
+        if last:
+            break
+        wi, weight, pdf, valid = sample_continuation(ctx, surf, frame, s, bounce)
+        beta = beta * weight
+        if bounce >= RR_START_BOUNCE:
+            q = np.clip(1.0 - beta.max(axis=1), 0.0, 0.95)
+            u_rr = samplers.uniform(s, samplers.bounce_dim(bounce, samplers.D_RR))
+            survive = u_rr >= q
+            valid &= survive
+            beta = beta / np.maximum(1.0 - q, 1e-6)[:, None]
+        keep = np.nonzero(valid)[0]
+        alive, beta, wi, pdf = alive[keep], beta[keep], wi[keep], pdf[keep]
+        p_prev = surf.p[keep]
+        o = offset_origins(p_prev, surf.ng[keep], wi, ctx.eps)
+        hits = ctx.accel.intersect_closest(o, wi)
+        # Emission found by the BSDF rays, each weighted against NEE.
+        L[alive] += beta * ctx.lights.emitted_along(o, wi, hits.t, pdf_bsdf=pdf)
+        miss = ~hits.hit
+        if miss.any():
+            L[alive[miss]] += beta[miss] * scene.world_color
+        surf, idx = surface_hits(scene, o, wi, hits)
+        alive, beta, pdf, p_prev = alive[idx], beta[idx], pdf[idx], p_prev[idx]
+        le = ctx.lights.triangle_emission(surf.prim, surf.front)
+        emissive = le.max(axis=1) > 0
+        if emissive.any():
+            pdf_l = ctx.lights.pdf_triangle(surf.prim, p_prev, surf.p, -surf.wo)
+            w = power_heuristic(pdf, pdf_l)
+            L[alive] += np.where(emissive[:, None], beta * le * w[:, None], 0.0)
+    np.nan_to_num(L, copy=False, nan=0.0, posinf=0.0, neginf=0.0)
+    return L
+
+
+@dataclass
+class PassResult:
+    """One sample per pixel of a whole image; rows of pixel index y * width + x."""
+    color: np.ndarray       # (P, 3)
+    depth: np.ndarray       # (P,) view-axis depth, 1e10 where nothing was hit
+    normal: np.ndarray      # (P, 3) world shading normal facing the camera (0 on misses)
+    albedo: np.ndarray      # (P, 3) diffuse + specular albedo (denoising albedo)
+
+
+def camera_pass(ctx, width, height, seed, frame, sample, max_bounces, pixel_filter):
+    """Path-trace one sample for every pixel."""
+    scene = ctx.scene
+    n = width * height
+    pix = np.arange(n, dtype=np.int64)
+    seeds = samplers.path_seeds(seed, frame, pix, sample)
+    xy = np.stack([pix % width, pix // width], axis=1).astype(np.float32) + 0.5
+    xy += pixel_filter.offsets(samplers.uniform2(seeds, samplers.DIM_CAMERA))
+    o, d, tmax = generate_rays(scene.camera, width, height, xy)
+    hits = ctx.accel.intersect_closest(o, d, tmax)
+
+    color = ctx.lights.emitted_along(o, d, np.minimum(hits.t, tmax))
+    color[~hits.hit] += scene.world_color
+    depth = np.full(n, 1e10, np.float32)
+    normal = np.zeros((n, 3), np.float32)
+    albedo = np.zeros((n, 3), np.float32)
+    surf, idx = surface_hits(scene, o, d, hits)
+    if len(idx):
+        color[idx] += ctx.lights.triangle_emission(surf.prim, surf.front)
+        color[idx] += radiance_from_surface(ctx, surf, seeds[idx], 0, max_bounces)
+        depth[idx] = view_depth(scene.camera, surf.p)
+        normal[idx] = surf.ns
+        frame = ShadingFrame.at(scene, surf)
+        albedo[idx] = np.clip(frame.params.diffuse + frame.params.f0, 0.0, 1.0)
+    np.nan_to_num(color, copy=False, nan=0.0, posinf=0.0, neginf=0.0)
+    return PassResult(color, depth, normal, albedo)
+
+
+def mean_luminance(color):
+    return float(luminance(color).mean())

@@ -1,0 +1,67 @@
+"""Deterministic random numbers: a pure function of (path seed, dimension).
+
+A path's seed is itself a hash of (render seed, frame, pixel, sample), so the
+same settings always give the same image, and ReSTIR can re-trace a stored
+path exactly by keeping its 64-bit seed (sample validation).
+
+Each bounce owns a fixed block of dimensions, as pbrt's wavefront integrator
+does, so adding a random decision at one bounce never shifts the others.
+"""
+
+import numpy as np
+
+_M1 = np.uint64(0xBF58476D1CE4E5B9)
+_M2 = np.uint64(0x94D049BB133111EB)
+_GOLDEN = np.uint64(0x9E3779B97F4A7C15)
+_S30, _S27, _S31 = np.uint64(30), np.uint64(27), np.uint64(31)
+_TO_UNIT = np.float32(1.0 / (1 << 24))
+
+# Dimension layout.
+DIM_CAMERA = 0            # pixel filter (2) + lens (2)
+DIM_BOUNCE_BASE = 8       # first dimension used by bounce 0
+DIMS_PER_BOUNCE = 8
+# Offsets within a bounce's block.
+D_LIGHT_SELECT = 0
+D_LIGHT_UV = 1            # two dimensions
+D_LOBE = 3
+D_BSDF_UV = 4             # two dimensions
+D_RR = 6
+
+
+def mix64(x):
+    """SplitMix64 finaliser: a bijective, well-avalanched 64-bit hash (arrays)."""
+    x = np.asarray(x, dtype=np.uint64)
+    with np.errstate(over="ignore"):
+        x = (x ^ (x >> _S30)) * _M1
+        x = (x ^ (x >> _S27)) * _M2
+    return x ^ (x >> _S31)
+
+
+def hash_keys(*keys):
+    """Combine integer keys (scalars or equally long arrays) into 64-bit seeds."""
+    h = np.uint64(0x6A09E667F3BCC909)
+    with np.errstate(over="ignore"):
+        for k in keys:
+            h = mix64(np.asarray(h, dtype=np.uint64) + _GOLDEN + np.asarray(k).astype(np.uint64))
+    return np.asarray(h, dtype=np.uint64)
+
+
+def path_seeds(seed, frame, pixel_index, sample):
+    """One seed per path from the render seed, frame, pixel indices and sample number."""
+    return hash_keys(seed, frame, sample, pixel_index)
+
+
+def uniform(seeds, dim):
+    """float32 uniforms in [0, 1) for each seed at dimension ``dim``."""
+    with np.errstate(over="ignore"):
+        h = mix64(seeds + np.uint64(dim + 1) * _GOLDEN)
+    return (h >> np.uint64(40)).astype(np.float32) * _TO_UNIT
+
+
+def uniform2(seeds, dim):
+    """(N, 2) uniforms at dimensions dim and dim + 1."""
+    return np.stack([uniform(seeds, dim), uniform(seeds, dim + 1)], axis=1)
+
+
+def bounce_dim(bounce, offset):
+    return DIM_BOUNCE_BASE + bounce * DIMS_PER_BOUNCE + offset

@@ -1,0 +1,213 @@
+"""The flat scene the renderer consumes: plain numpy arrays, world space.
+
+The Blender layer (or a test) fills these; nothing here knows about Blender.
+Units and conventions follow Cycles so the same .blend renders with the same
+brightness: light power in watts, sun strength as irradiance (W/m^2), emission
+strength and world strength as radiance.
+"""
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+# Light types.
+LIGHT_POINT = 0
+LIGHT_SPOT = 1
+LIGHT_SUN = 2
+LIGHT_AREA = 3
+
+# Area light shapes.
+SHAPE_SQUARE = 0
+SHAPE_RECTANGLE = 1
+SHAPE_DISK = 2
+SHAPE_ELLIPSE = 3
+
+
+@dataclass
+class Materials:
+    """Material table; triangles index it by material id (row 0 is the default)."""
+    base_color: np.ndarray      # (M, 3) float32
+    metallic: np.ndarray        # (M,) float32
+    roughness: np.ndarray       # (M,) float32
+    specular: np.ndarray        # (M,) float32, Principled "Specular IOR Level" (0.5 = IOR's own)
+    ior: np.ndarray             # (M,) float32
+    emission: np.ndarray        # (M, 3) float32 radiance = colour x strength
+    names: list = field(default_factory=list)
+
+    @staticmethod
+    def from_list(rows):
+        """rows: dicts with any of base_color, metallic, roughness, specular, ior, emission, name."""
+        rows = list(rows) or [{}]
+
+        def col(key, default, width=None):
+            vals = [r.get(key, default) for r in rows]
+            arr = np.asarray(vals, dtype=np.float32)
+            return arr.reshape(len(rows), width) if width else arr.reshape(len(rows))
+
+        return Materials(
+            base_color=col("base_color", (0.8, 0.8, 0.8), 3),
+            metallic=col("metallic", 0.0),
+            roughness=col("roughness", 0.5),
+            specular=col("specular", 0.0),
+            ior=col("ior", 1.5),
+            emission=col("emission", (0.0, 0.0, 0.0), 3),
+            names=[r.get("name", f"material_{i}") for i, r in enumerate(rows)],
+        )
+
+    def __len__(self):
+        return len(self.metallic)
+
+
+@dataclass
+class Lights:
+    """Analytic lights, one row each (emissive triangles are found from materials)."""
+    kind: np.ndarray            # (L,) int32, LIGHT_*
+    position: np.ndarray        # (L, 3) float32
+    direction: np.ndarray       # (L, 3) float32, unit, where the light points (local -Z)
+    axis_u: np.ndarray          # (L, 3) float32, unit, local +X (area lights)
+    axis_v: np.ndarray          # (L, 3) float32, unit, local +Y (area lights)
+    power: np.ndarray           # (L, 3) float32, W for point/spot/area, W/m^2 for sun
+    radius: np.ndarray          # (L,) float32, point/spot sphere radius
+    spot_size: np.ndarray       # (L,) float32, full cone angle in radians
+    spot_blend: np.ndarray      # (L,) float32
+    angle: np.ndarray           # (L,) float32, sun angular diameter in radians
+    shape: np.ndarray           # (L,) int32, SHAPE_*
+    size_u: np.ndarray          # (L,) float32, area extent along axis_u
+    size_v: np.ndarray          # (L,) float32, area extent along axis_v
+    names: list = field(default_factory=list)
+
+    @staticmethod
+    def empty():
+        return Lights.from_list([])
+
+    @staticmethod
+    def from_list(rows):
+        """rows: dicts with kind and whichever fields apply; the rest default."""
+        rows = list(rows)
+        n = len(rows)
+
+        def col(key, default, dtype=np.float32, width=None):
+            vals = [r.get(key, default) for r in rows]
+            shape = (n, width) if width else (n,)
+            return np.asarray(vals, dtype=dtype).reshape(shape)
+
+        return Lights(
+            kind=col("kind", LIGHT_POINT, np.int32),
+            position=col("position", (0, 0, 0), width=3),
+            direction=col("direction", (0, 0, -1), width=3),
+            axis_u=col("axis_u", (1, 0, 0), width=3),
+            axis_v=col("axis_v", (0, 1, 0), width=3),
+            power=col("power", (0, 0, 0), width=3),
+            radius=col("radius", 0.0),
+            spot_size=col("spot_size", np.pi / 4),
+            spot_blend=col("spot_blend", 0.15),
+            angle=col("angle", 0.0),
+            shape=col("shape", SHAPE_SQUARE, np.int32),
+            size_u=col("size_u", 1.0),
+            size_v=col("size_v", 1.0),
+            names=[r.get("name", f"light_{i}") for i, r in enumerate(rows)],
+        )
+
+    def __len__(self):
+        return len(self.kind)
+
+
+@dataclass
+class Camera:
+    """Blender camera model: looks down local -Z with +Y up, sensor in mm."""
+    to_world: np.ndarray = field(default_factory=lambda: np.eye(4, dtype=np.float32))
+    projection: str = "PERSP"   # or "ORTHO"
+    lens: float = 50.0          # focal length, mm
+    sensor_width: float = 36.0
+    sensor_height: float = 24.0
+    sensor_fit: str = "AUTO"    # AUTO, HORIZONTAL, VERTICAL
+    ortho_scale: float = 6.0
+    shift_x: float = 0.0
+    shift_y: float = 0.0
+    clip_start: float = 0.1
+    clip_end: float = 1000.0
+
+
+@dataclass
+class Scene:
+    """Triangles in world space plus materials, lights, world and camera."""
+    vertices: np.ndarray        # (V, 3) float32
+    triangles: np.ndarray       # (T, 3) int32 indices into vertices
+    normals: np.ndarray         # (T, 3, 3) float32 shading normal per corner
+    uvs: np.ndarray             # (T, 3, 2) float32
+    material_ids: np.ndarray    # (T,) int32 into materials
+    object_ids: np.ndarray      # (T,) int32, which exported object a triangle came from
+    materials: Materials
+    lights: Lights
+    camera: Camera
+    world_color: np.ndarray = field(default_factory=lambda: np.zeros(3, np.float32))  # radiance
+    width: int = 64
+    height: int = 64
+    filter_width: float = 1.5   # pixel filter width in pixels (Blackman-Harris, as Cycles)
+    warnings: list = field(default_factory=list)
+
+    @property
+    def triangle_count(self):
+        return len(self.triangles)
+
+    def bounds(self):
+        if len(self.vertices) == 0:
+            return np.zeros(3, np.float32), np.zeros(3, np.float32)
+        return self.vertices.min(axis=0), self.vertices.max(axis=0)
+
+    def extent(self):
+        """Diagonal of the bounding box (at least 1e-3), used for ray offsets."""
+        lo, hi = self.bounds()
+        return max(float(np.linalg.norm(hi - lo)), 1e-3)
+
+
+def make_scene(vertices, triangles, material_ids=None, materials=None, lights=None,
+               camera=None, world_color=(0, 0, 0), normals=None, uvs=None,
+               object_ids=None, width=64, height=64, filter_width=1.5):
+    """Build a Scene from minimal arrays, computing flat normals where none are given,
+    and removing degenerate or non-finite triangles (with a warning)."""
+    v = np.ascontiguousarray(vertices, dtype=np.float32).reshape(-1, 3)
+    t = np.ascontiguousarray(triangles, dtype=np.int32).reshape(-1, 3)
+    n_tri = len(t)
+    mids = np.zeros(n_tri, np.int32) if material_ids is None else np.asarray(material_ids, np.int32)
+    oids = np.zeros(n_tri, np.int32) if object_ids is None else np.asarray(object_ids, np.int32)
+    mats = materials if materials is not None else Materials.from_list([{}])
+    warnings = []
+
+    keep = np.ones(n_tri, bool)
+    if n_tri:
+        in_range = (t >= 0).all(axis=1) & (t < len(v)).all(axis=1)
+        keep &= in_range
+        tc = np.where(in_range[:, None], t, 0)
+        p = v[tc]
+        finite = np.isfinite(p).all(axis=(1, 2))
+        cross = np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0])
+        with np.errstate(invalid="ignore", over="ignore"):
+            area2 = np.einsum("ij,ij->i", cross, cross)
+        keep &= finite & (area2 > 0) & np.isfinite(area2)
+        bad = int(n_tri - keep.sum())
+        if bad:
+            warnings.append(f"Skipped {bad} degenerate or non-finite triangle(s)")
+    mids = np.where((mids >= 0) & (mids < len(mats)), mids, 0).astype(np.int32)
+
+    t, mids, oids = t[keep], mids[keep], oids[keep]
+    p = v[t] if len(t) else np.zeros((0, 3, 3), np.float32)
+    if normals is None:
+        ng = np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]) if len(t) else np.zeros((0, 3), np.float32)
+        ng /= np.maximum(np.linalg.norm(ng, axis=1, keepdims=True), 1e-30)
+        ns = np.repeat(ng[:, None, :], 3, axis=1)
+    else:
+        ns = np.asarray(normals, np.float32).reshape(-1, 3, 3)[keep]
+        ns = np.where(np.isfinite(ns), ns, 0.0)
+    if uvs is None:
+        uv = np.zeros((len(t), 3, 2), np.float32)
+    else:
+        uv = np.asarray(uvs, np.float32).reshape(-1, 3, 2)[keep]
+
+    return Scene(
+        vertices=v, triangles=np.ascontiguousarray(t), normals=np.ascontiguousarray(ns, np.float32),
+        uvs=np.ascontiguousarray(uv, np.float32), material_ids=mids, object_ids=oids,
+        materials=mats, lights=lights if lights is not None else Lights.empty(),
+        camera=camera if camera is not None else Camera(),
+        world_color=np.asarray(world_color, np.float32).reshape(3),
+        width=int(width), height=int(height), filter_width=float(filter_width), warnings=warnings)
