@@ -109,10 +109,11 @@ def _spec_pdf(wo, h, alpha):
 # --- BSDF interface ---------------------------------------------------------
 
 def evaluate(params, wo, wi):
-    """f(wo, wi) as (N, 3); zero unless both directions are above the surface."""
-    valid = (wo[:, 2] > 0) & (wi[:, 2] > 0)
-    f = params.diffuse * INV_PI
-    has_spec = params.p_spec > 0
+    """f(wo, wi) as (N, 3). The diffuse lobe needs only wi above the shading
+    normal (as Cycles: bent smooth-shaded normals must not blacken surfaces);
+    the specular lobe needs both directions above it."""
+    f = np.where((wi[:, 2] > 0)[:, None], params.diffuse * INV_PI, 0.0)
+    has_spec = (params.p_spec > 0) & (wo[:, 2] > 0) & (wi[:, 2] > 0)
     if has_spec.any():
         h = _half(wo, wi)
         d = ggx_d(h, params.alpha)
@@ -121,25 +122,29 @@ def evaluate(params, wo, wi):
         den = 4.0 * np.maximum(wo[:, 2] * wi[:, 2], 1e-12)
         spec = fr * (d * g2 / den)[:, None]
         f = f + np.where(has_spec[:, None], spec, 0.0)
-    return np.where(valid[:, None], f, 0.0).astype(np.float32)
+    return f.astype(np.float32)
+
+
+def _p_spec(params, wo):
+    """Specular lobe selection probability; zero where wo is below the shading normal."""
+    return np.where(wo[:, 2] > 0, params.p_spec, 0.0)
 
 
 def pdf(params, wo, wi):
-    valid = (wo[:, 2] > 0) & (wi[:, 2] > 0)
-    p = (1.0 - params.p_spec) * cosine_hemisphere_pdf(wi[:, 2])
-    has_spec = params.p_spec > 0
+    p_spec = _p_spec(params, wo)
+    p = (1.0 - p_spec) * cosine_hemisphere_pdf(wi[:, 2])
+    has_spec = (p_spec > 0) & (wi[:, 2] > 0)
     if has_spec.any():
-        p = p + np.where(has_spec, params.p_spec * _spec_pdf(wo, _half(wo, wi), params.alpha), 0.0)
-    return np.where(valid, p, 0.0).astype(np.float32)
+        p = p + np.where(has_spec, p_spec * _spec_pdf(wo, _half(wo, wi), params.alpha), 0.0)
+    return np.where(wi[:, 2] > 0, p, 0.0).astype(np.float32)
 
 
 def sample(params, wo, u_lobe, u):
     """Draw wi; returns (wi, f, pdf). pdf is 0 where no valid direction was found."""
     wi = square_to_cosine_hemisphere(u)
-    spec = u_lobe < params.p_spec
+    spec = u_lobe < _p_spec(params, wo)
     if spec.any():
         h = ggx_sample_visible_normal(wo[spec], params.alpha[spec], u[spec])
         wos = wo[spec]
-        wi_s = 2.0 * np.einsum("ij,ij->i", wos, h)[:, None] * h - wos
-        wi[spec] = wi_s
+        wi[spec] = 2.0 * np.einsum("ij,ij->i", wos, h)[:, None] * h - wos
     return wi.astype(np.float32), evaluate(params, wo, wi), pdf(params, wo, wi)

@@ -89,10 +89,13 @@ def view_depth(camera, points):
 
 class PixelFilter:
     """Importance sampling of Cycles' Blackman-Harris pixel filter, separably in x
-    and y, so every sample has weight one (filter importance sampling)."""
+    and y, so every sample has weight one (filter importance sampling).
+
+    As in Cycles, a filter width w spans [-w, w] pixels (the window is twice
+    the user-facing width)."""
 
     def __init__(self, width=1.5, bins=256):
-        self.width = float(width)
+        self.width = 2.0 * float(width)
         if self.width <= 0:
             self.dist = None
             return

@@ -7,13 +7,15 @@ its distance, the incident radiance and the solid-angle pdf (selection included)
 both strategies combine by multiple importance sampling.
 
 Brightness follows Cycles (docs/cycles-conventions.md):
-- point / spot of power P and radius r: a sphere of radiance P / (4 pi^2 r^2),
-  i.e. intensity P / (4 pi); r = 0 is a true point light;
+- point / spot of power P and radius r: radiance P / (4 pi^2 r^2), i.e.
+  intensity P / (4 pi); with soft falloff (Blender's default) the emitter is a
+  disk of radius r facing the receiver, otherwise a sphere; r = 0 is a point;
 - spot mask: smoothstep((cos a - cos(size/2)) / ((1 - cos(size/2)) blend));
 - sun of strength E: irradiance E on a surface facing it, spread over its disk;
 - area light of power P and area A: one-sided radiance P / (pi A) along -Z;
 - emission colour x strength and world colour x strength: radiance.
-Lights are not surfaces: they cast no shadow and rays pass through them.
+Lights are not surfaces: they cast no shadow and rays pass through them;
+camera rays see them only where ``camera_visible`` is set (off by default).
 """
 
 from dataclasses import dataclass
@@ -133,30 +135,43 @@ class LightSet:
         return np.where(spot, mask, 1.0).astype(np.float32)
 
     def _sample_sphere(self, li, p, u):
+        """Point and spot lights: a true point (r = 0), a disk of radius r facing
+        the receiver (soft falloff) or a sphere sampled by its cone."""
         lt = self.lights
         c = lt.position[li]
         r = lt.radius[li]
         to_c = c - p
         d2 = np.maximum(dot(to_c, to_c), 1e-20)
         d = np.sqrt(d2)
-        axis = to_c / d[:, None]
+        axis = (to_c / d[:, None]).astype(np.float32)
         r2 = r * r
         outside = d2 > r2 * 1.0001
         point = r <= 0
+        soft = lt.soft_falloff[li] & ~point
+        t, b = orthonormal_basis(axis)
+        # Sphere: uniform in the cone it subtends.
         one_minus = _one_minus_cos_cone(r2 / d2)
-        cos_max = 1.0 - one_minus
-        local = square_to_uniform_cone(u, np.where(point, 1.0, cos_max))
-        t, b = orthonormal_basis(axis.astype(np.float32))
-        wi = np.where(point[:, None], axis, to_world(local, t, b, axis)).astype(np.float32)
-        # Distance to the near side of the sphere along wi.
-        proj = dot(to_c, wi)
-        disc = np.maximum(r2 - (d2 - proj * proj), 0.0)
-        dist = np.where(point, d, proj - np.sqrt(disc)).astype(np.float32)
+        local = square_to_uniform_cone(u, np.where(point, 1.0, 1.0 - one_minus))
+        wi_sphere = to_world(local, t, b, axis)
+        proj = dot(to_c, wi_sphere)
+        dist_sphere = proj - np.sqrt(np.maximum(r2 - (d2 - proj * proj), 0.0))
+        pdf_sphere = 1.0 / (2.0 * np.pi * np.maximum(one_minus, 1e-30))
+        # Disk facing the receiver: uniform by area.
+        xy = square_to_concentric_disk(u) * r[:, None]
+        to_q = to_c + xy[:, 0:1] * t + xy[:, 1:2] * b
+        dq2 = np.maximum(dot(to_q, to_q), 1e-20)
+        dq = np.sqrt(dq2)
+        wi_disk = to_q / dq[:, None]
+        cos_q = np.maximum(dot(wi_disk, axis), 1e-12)
+        pdf_disk = dq2 / (cos_q * np.pi * np.maximum(r2, 1e-30))
+
+        wi = np.where(point[:, None], axis, np.where(soft[:, None], wi_disk, wi_sphere)).astype(np.float32)
+        dist = np.where(point, d, np.where(soft, dq, dist_sphere)).astype(np.float32)
+        pdf = np.where(point, 1.0, np.where(soft, pdf_disk, pdf_sphere))
         power = lt.power[li] * self._spot_mask(li, -wi)[:, None]
         intensity = power / (4.0 * np.pi)
-        radiance_sphere = intensity / np.maximum(np.pi * r2, 1e-30)[:, None]
-        rad = np.where(point[:, None], intensity / d2[:, None], radiance_sphere)
-        pdf = np.where(point, 1.0, 1.0 / (2.0 * np.pi * np.maximum(one_minus, 1e-30)))
+        radiance = intensity / np.maximum(np.pi * r2, 1e-30)[:, None]
+        rad = np.where(point[:, None], intensity / d2[:, None], radiance)
         rad = np.where(outside[:, None], rad, 0.0)
         return wi, dist, rad.astype(np.float32), pdf.astype(np.float32), point
 
@@ -239,7 +254,8 @@ class LightSet:
 
     def emitted_along(self, o, d, tmax, pdf_bsdf=None):
         """Radiance of the analytic lights crossed by rays o + t d, 0 < t < tmax,
-        weighted against NEE by the power heuristic (weight 1 where pdf_bsdf is None)."""
+        weighted against NEE by the power heuristic. pdf_bsdf None means camera
+        rays: weight one, and only lights marked camera_visible."""
         n = len(o)
         total = np.zeros((n, 3), np.float32)
         if self.n_analytic == 0 or n == 0:
@@ -247,6 +263,8 @@ class LightSet:
         lt = self.lights
         for li in range(self.n_analytic):
             kind = lt.kind[li]
+            if pdf_bsdf is None and not lt.camera_visible[li]:
+                continue
             pmf = self.distribution.pmf[li]
             if kind == LIGHT_AREA:
                 nrm = lt.direction[li]
@@ -266,16 +284,26 @@ class LightSet:
                 c = lt.position[li]
                 r = lt.radius[li]
                 oc = c - o
-                proj = np.einsum("ij,ij->i", oc, d)
-                d2 = np.einsum("ij,ij->i", oc, oc)
-                disc = r * r - (d2 - proj * proj)
-                t = proj - np.sqrt(np.maximum(disc, 0.0))
-                hit = (disc > 0) & (t > 0) & (t < tmax) & (d2 > r * r)
+                d2 = np.maximum(np.einsum("ij,ij->i", oc, oc), 1e-20)
+                if lt.soft_falloff[li]:
+                    # Disk through c facing the ray origin.
+                    nrm = -oc / np.sqrt(d2)[:, None]
+                    den = np.einsum("ij,ij->i", d, nrm)
+                    t = -np.einsum("ij,ij->i", oc, nrm) / np.where(den < 0, den, -1.0)
+                    q = o + d * t[:, None] - c
+                    hit = (den < 0) & (t > 0) & (t < tmax) & (np.einsum("ij,ij->i", q, q) <= r * r)
+                    pdf_light = pmf * t * t / (np.maximum(-den, 1e-12) * np.pi * r * r)
+                else:
+                    proj = np.einsum("ij,ij->i", oc, d)
+                    disc = r * r - (d2 - proj * proj)
+                    t = proj - np.sqrt(np.maximum(disc, 0.0))
+                    hit = (disc > 0) & (t > 0) & (t < tmax)
+                    pdf_light = pmf / (2.0 * np.pi * np.maximum(_one_minus_cos_cone(r * r / d2), 1e-30))
+                hit &= d2 > r * r
                 if not hit.any():
                     continue
                 power = lt.power[li][None, :] * self._spot_mask(np.full(n, li), -d)[:, None]
                 le = power / (4.0 * np.pi * np.pi * r * r)
-                pdf_light = pmf / (2.0 * np.pi * np.maximum(_one_minus_cos_cone(r * r / np.maximum(d2, 1e-20)), 1e-30))
             else:
                 continue  # point lights of zero radius and the sun: NEE only
             w = np.ones(n, np.float32) if pdf_bsdf is None else power_heuristic(pdf_bsdf, pdf_light)

@@ -74,6 +74,8 @@ class Lights:
     shape: np.ndarray           # (L,) int32, SHAPE_*
     size_u: np.ndarray          # (L,) float32, area extent along axis_u
     size_v: np.ndarray          # (L,) float32, area extent along axis_v
+    soft_falloff: np.ndarray    # (L,) bool, point/spot act as a disk facing the receiver
+    camera_visible: np.ndarray  # (L,) bool, camera rays see the light (Blender's default: no)
     names: list = field(default_factory=list)
 
     @staticmethod
@@ -105,6 +107,8 @@ class Lights:
             shape=col("shape", SHAPE_SQUARE, np.int32),
             size_u=col("size_u", 1.0),
             size_v=col("size_v", 1.0),
+            soft_falloff=col("soft_falloff", True, bool),
+            camera_visible=col("camera_visible", False, bool),
             names=[r.get("name", f"light_{i}") for i, r in enumerate(rows)],
         )
 

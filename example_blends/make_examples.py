@@ -143,6 +143,8 @@ def add_mesh(name, verts, faces, material, location=(0.0, 0.0, 0.0),
     mesh.polygons.add(len(faces))
     mesh.polygons.foreach_set('loop_start', starts)
     mesh.polygons.foreach_set('loop_total', sizes)
+    # Boxes and walls are faceted: flat shading, as a modeller would set it.
+    mesh.polygons.foreach_set('use_smooth', [False] * len(faces))
     mesh.update()
     if mesh.validate():
         raise RuntimeError(f"mesh {name!r} was invalid and had to be fixed")

@@ -7,7 +7,7 @@ import numpy as np
 
 from .. import bsdf, samplers
 from ..accel import Accel, offset_origins
-from ..lights import LightSet
+from ..lights import INF_DIST, LightSet
 from ..sampling import dot, orthonormal_basis, power_heuristic, to_local, to_world
 
 RAY_EPS_RELATIVE = 1e-5     # origin offset relative to the scene's extent
@@ -80,11 +80,27 @@ def direct_light(ctx, surf, frame, seeds, bounce, mis=True):
     rows = np.nonzero(live)[0]
     if len(rows) == 0:
         return out
-    o = offset_origins(surf.p[rows], surf.ng[rows], ls.wi[rows], ctx.eps)
-    tmax = np.maximum(ls.dist[rows] * (1.0 - 1e-4) - 2.0 * ctx.eps, 0.0)
-    blocked = ctx.accel.occluded(o, ls.wi[rows], tmax)
+    blocked = ctx.accel.occluded(*shadow_rays(ctx, surf.p[rows], surf.ng[rows], ls.wi[rows], ls.dist[rows]))
     out[rows] = np.where(blocked[:, None], 0.0, contrib[rows])
     return out
+
+
+def shadow_rays(ctx, p, ng, wi, dist):
+    """Shadow rays from surface points toward light points at ``dist`` along wi.
+
+    The origin moves off the surface, so the direction is re-aimed from the moved
+    origin at the light point: at grazing angles the unmoved direction would
+    cross the light's plane early and hit the emitter itself. Returns
+    (origins, directions, tmax) for ``Accel.occluded``.
+    """
+    o = offset_origins(p, ng, wi, ctx.eps)
+    finite = dist < INF_DIST
+    target = p + wi * np.where(finite, dist, 0.0)[:, None]
+    d = target - o
+    length = np.sqrt(dot(d, d))
+    d = np.where((finite & (length > 0))[:, None], d / np.maximum(length, 1e-30)[:, None], wi)
+    tmax = np.where(finite, np.maximum(length * (1.0 - 1e-4) - ctx.eps, 0.0), INF_DIST)
+    return o, d.astype(np.float32), tmax.astype(np.float32)
 
 
 def sample_continuation(ctx, surf, frame, seeds, bounce):

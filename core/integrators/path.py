@@ -27,8 +27,9 @@ RR_START_BOUNCE = 3
 def radiance_from_surface(ctx, surf, seeds, bounce0, max_bounces):
     """Radiance reflected at ``surf`` toward ``surf.wo`` (its own emission excluded).
 
-    bounce0 is the bounce index of ``surf`` (0 for camera hits); the path ends
-    after NEE at bounce ``max_bounces``. Returns (N, 3) float32.
+    bounce0 is the bounce index of ``surf`` (0 for camera hits). Every vertex up
+    to bounce ``max_bounces`` gets NEE and a BSDF ray, both weighted by MIS; the
+    BSDF ray of the last vertex only collects emission. Returns (N, 3) float32.
     """
     scene = ctx.scene
     n = len(surf)
@@ -40,17 +41,13 @@ def radiance_from_surface(ctx, surf, seeds, bounce0, max_bounces):
             break
         s = seeds[alive]
         frame = ShadingFrame.at(scene, surf)
-        last = bounce == max_bounces
-        L[alive] += beta * direct_light(ctx, surf, frame, s, bounce, mis=not last)
-        if last:
-            break
+        L[alive] += beta * direct_light(ctx, surf, frame, s, bounce)
         wi, weight, pdf, valid = sample_continuation(ctx, surf, frame, s, bounce)
         beta = beta * weight
         if bounce >= RR_START_BOUNCE:
             q = np.clip(1.0 - beta.max(axis=1), 0.0, 0.95)
             u_rr = samplers.uniform(s, samplers.bounce_dim(bounce, samplers.D_RR))
-            survive = u_rr >= q
-            valid &= survive
+            valid &= u_rr >= q
             beta = beta / np.maximum(1.0 - q, 1e-6)[:, None]
         keep = np.nonzero(valid)[0]
         alive, beta, wi, pdf = alive[keep], beta[keep], wi[keep], pdf[keep]

@@ -74,7 +74,7 @@ def export_scene(depsgraph, width=None, height=None):
         obj = inst.object
         if obj.type == "LIGHT":
             if is_supported(obj.data):
-                light_rows.append(light_row(obj.data, inst.matrix_world, obj.name))
+                light_rows.append(light_row(obj, inst.matrix_world, warn))
             else:
                 warn(f"Light '{obj.name}' of type {obj.data.type} is not supported")
             continue

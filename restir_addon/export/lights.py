@@ -10,8 +10,10 @@ _SHAPE = {"SQUARE": SHAPE_SQUARE, "RECTANGLE": SHAPE_RECTANGLE, "DISK": SHAPE_DI
           "ELLIPSE": SHAPE_ELLIPSE}
 
 
-def light_row(light, matrix, name):
-    """A dict for core.Lights.from_list from a bpy Light and its world matrix."""
+def light_row(light_object, matrix, warn):
+    """A dict for core.Lights.from_list from a light object and its world matrix."""
+    light = light_object.data
+    name = light_object.name
     m = np.asarray(matrix, np.float64)
     axes = m[:3, :3]
     scale = np.linalg.norm(axes, axis=0)
@@ -26,8 +28,10 @@ def light_row(light, matrix, name):
         "axis_v": unit[:, 1],
         "power": color * float(light.energy),
     }
+    row["camera_visible"] = bool(getattr(light_object, "visible_camera", False))
     if light.type in ("POINT", "SPOT"):
         row["radius"] = float(light.shadow_soft_size)
+        row["soft_falloff"] = bool(getattr(light, "use_soft_falloff", True))
     if light.type == "SPOT":
         row["spot_size"] = float(light.spot_size)
         row["spot_blend"] = float(light.spot_blend)
@@ -40,7 +44,28 @@ def light_row(light, matrix, name):
         row["shape"] = shape
         row["size_u"] = size_u * scale[0]
         row["size_v"] = size_v * scale[1]
+        spread = float(getattr(light, "spread", np.pi))
+        if spread < np.pi - 1e-4:
+            warn(f"Light '{name}': area light spread below 180 degrees is not supported")
+    if getattr(light, "use_temperature", False):
+        warn(f"Light '{name}': colour temperature is not supported; using its colour")
+    if not getattr(light, "normalize", True):
+        row["power"] = row["power"] * _unnormalized_factor(row)
     return row
+
+
+def _unnormalized_factor(row):
+    """Power scale that turns Blender's 'normalize off' convention (radiance =
+    power / pi, independent of size) into the normalised formulas core uses."""
+    kind = row["kind"]
+    if kind in (LIGHT_POINT, LIGHT_SPOT):
+        r = row.get("radius", 0.0)
+        return 4.0 * np.pi * r * r if r > 0 else 4.0
+    if kind == LIGHT_SUN:
+        half = 0.5 * row.get("angle", 0.0)
+        return np.pi * np.sin(half) ** 2 if half > 0 else 1.0
+    area = row["size_u"] * row["size_v"] * (np.pi / 4 if row["shape"] in (SHAPE_DISK, SHAPE_ELLIPSE) else 1.0)
+    return area
 
 
 def is_supported(light):

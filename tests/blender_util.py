@@ -1,0 +1,71 @@
+"""Helpers for tests that drive Blender: scenes from the example blends, renders
+with either engine read back as linear float images."""
+
+import os
+import tempfile
+from pathlib import Path
+
+import numpy as np
+
+from core.film import read_exr
+
+ROOT = Path(__file__).resolve().parent.parent
+EXAMPLES = ROOT / "example_blends"
+
+
+def open_example(name):
+    import bpy
+    bpy.ops.wm.open_mainfile(filepath=str(EXAMPLES / name))
+    return bpy.context.scene
+
+
+def set_resolution(scene, width, height):
+    scene.render.resolution_x = width
+    scene.render.resolution_y = height
+    scene.render.resolution_percentage = 100
+
+
+def setup_cycles(scene, samples, seed, bounces):
+    scene.render.engine = "CYCLES"
+    c = scene.cycles
+    c.device = "CPU"
+    c.samples = samples
+    c.seed = seed
+    c.use_denoising = False
+    c.use_adaptive_sampling = False
+    c.max_bounces = c.diffuse_bounces = c.glossy_bounces = c.transmission_bounces = bounces
+    c.sample_clamp_direct = 0.0
+    c.sample_clamp_indirect = 0.0
+    scene.render.threads_mode = "FIXED"
+    scene.render.threads = 2
+
+
+def setup_restir(scene, samples, seed, bounces, mode="PATH"):
+    scene.render.engine = "RESTIR_GI"
+    s = scene.restir_gi
+    s.mode = mode
+    s.samples = samples
+    s.seed = seed
+    s.max_bounces = bounces
+
+
+def render_image(scene):
+    """Render the current frame and return (H, W, 3) linear float32, row 0 at the bottom."""
+    import bpy
+    settings = scene.render.image_settings
+    settings.file_format = "OPEN_EXR"
+    settings.color_depth = "32"
+    fd, path = tempfile.mkstemp(suffix=".exr")
+    os.close(fd)
+    try:
+        scene.render.filepath = path
+        bpy.ops.render.render(write_still=True)
+        return read_exr(path)
+    finally:
+        os.unlink(path)
+
+
+def block_means(img, block):
+    h, w = img.shape[:2]
+    lum = img[..., :3] @ np.array([0.2126, 0.7152, 0.0722], np.float32)
+    return lum[: h - h % block, : w - w % block].reshape(h // block, block, w // block, block).mean(axis=(1, 3))
