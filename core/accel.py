@@ -7,6 +7,7 @@ Large batches are split across threads: embreex releases the GIL inside
 """
 
 import os
+import time
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
 
@@ -57,6 +58,8 @@ class Accel:
         from embreex.mesh_construction import TriangleMesh
 
         self.triangle_count = len(triangles)
+        self.rays_traced = 0          # counters for benchmarks: rays and seconds in Embree
+        self.trace_seconds = 0.0
         self.threads = max(1, threads or min(os.cpu_count() or 1, 2))
         self._pool = ThreadPoolExecutor(self.threads) if self.threads > 1 else None
         self._scene = None
@@ -98,7 +101,10 @@ class Accel:
         def run(a, b):
             return self._scene.run(o[a:b], d[a:b], dist[a:b], output=True)
 
+        t0 = time.perf_counter()
         parts = self._map(run, n)
+        self.trace_seconds += time.perf_counter() - t0
+        self.rays_traced += n
         prim = np.concatenate([p["primID"] for p in parts]).astype(np.int32)
         t = np.concatenate([p["tfar"] for p in parts]).astype(np.float32)
         t = np.where(prim >= 0, t, np.inf).astype(np.float32)
@@ -116,7 +122,11 @@ class Accel:
         def run(a, b):
             return self._scene.run(o[a:b], d[a:b], dist[a:b], query="OCCLUDED")
 
-        return np.concatenate(self._map(run, n)) >= 0
+        t0 = time.perf_counter()
+        blocked = np.concatenate(self._map(run, n)) >= 0
+        self.trace_seconds += time.perf_counter() - t0
+        self.rays_traced += n
+        return blocked
 
 
 def offset_origins(p, ng, direction, eps):

@@ -3,6 +3,8 @@
 import time
 from dataclasses import dataclass
 
+import numpy as np
+
 from .camera import PixelFilter
 from .film import Film
 from .integrators.path import camera_pass
@@ -16,23 +18,35 @@ class RenderSettings:
     seed: int = 0
 
 
+CHUNK_PIXELS = 1 << 16     # pixels per batch: bounds memory and the latency of a cancel
+
+
 def render_frame(ctx, settings, frame=0, on_sample=None, should_stop=None):
     """Path-trace ``settings.samples`` passes of the whole image into a Film.
 
     on_sample(film, seconds) is called after every pass; should_stop() is polled
-    between passes, so a cancel takes at most one pass. Returns the Film (with
-    the passes done so far if stopped early).
+    between batches of CHUNK_PIXELS pixels, so a cancel is noticed within one
+    batch. Returns the Film with the passes completed so far.
     """
     scene = ctx.scene
-    film = Film(scene.width, scene.height)
+    w, h = scene.width, scene.height
+    film = Film(w, h)
     pixel_filter = PixelFilter(scene.filter_width)
     start = time.perf_counter()
+    n = w * h
     for s in range(settings.samples):
-        if should_stop is not None and should_stop():
-            break
-        res = camera_pass(ctx, scene.width, scene.height, settings.seed, frame, s,
-                          settings.max_bounces, pixel_filter)
-        film.add(res.color, depth=res.depth, normal=res.normal, albedo=res.albedo)
+        color = np.zeros((n, 3), np.float32)
+        depth = np.zeros(n, np.float32)
+        normal = np.zeros((n, 3), np.float32)
+        albedo = np.zeros((n, 3), np.float32)
+        for a in range(0, n, CHUNK_PIXELS):
+            if should_stop is not None and should_stop():
+                return film
+            pix = np.arange(a, min(a + CHUNK_PIXELS, n))
+            res = camera_pass(ctx, w, h, settings.seed, frame, s, settings.max_bounces,
+                              pixel_filter, pixels=pix)
+            color[pix], depth[pix], normal[pix], albedo[pix] = res.color, res.depth, res.normal, res.albedo
+        film.add(color, depth=depth, normal=normal, albedo=albedo)
         if on_sample is not None:
             on_sample(film, time.perf_counter() - start)
     return film

@@ -17,6 +17,9 @@ from .passes import PASSES
 
 UPDATE_INTERVAL = 1.0   # seconds between progressive result updates
 
+# Seconds spent in each stage of the latest frame (for the benchmarks and the log).
+last_timings = {}
+
 
 def _settings(scene):
     s = scene.restir_gi
@@ -72,18 +75,25 @@ def render(engine, depsgraph):
                 engine.update_result(result)
                 last_update[0] = now
 
+        t1 = time.perf_counter()
         try:
             film = render_frame(ctx, settings, frame=scene.frame_current, on_sample=on_sample,
                                 should_stop=engine.test_break)
         finally:
             ctx.close()
+        render_s = time.perf_counter() - t1
+        last_timings.clear()
+        last_timings.update(export=export_s, trace=ctx.accel.trace_seconds,
+                            shade=render_s - ctx.accel.trace_seconds, rays=ctx.accel.rays_traced)
         if film.count < settings.samples:
             engine.report({"INFO"}, f"Render cancelled after {film.count} of {settings.samples} samples")
     except Exception as exc:  # report, never kill the render
         traceback.print_exc()
         engine.report({"ERROR"}, f"ReSTIR GI render failed: {exc}")
     finally:
+        t2 = time.perf_counter()
         try:
             _write(result, film, width, height)
         finally:
             engine.end_result(result)
+        last_timings["write"] = time.perf_counter() - t2

@@ -1,9 +1,82 @@
-"""Render Properties panels."""
+"""Render Properties panels, and the built-in panels the engine adopts."""
+
+import bpy
+
+ENGINE = "RESTIR_GI"
+
+# Built-in panels made for other engines that also apply to ours (material and
+# world node inputs, light settings), besides every panel open to BLENDER_RENDER.
+EXTRA_PANELS = (
+    "EEVEE_MATERIAL_PT_context_material",
+    "EEVEE_MATERIAL_PT_surface",
+    "EEVEE_WORLD_PT_surface",
+    "DATA_PT_EEVEE_light",
+    "DATA_PT_EEVEE_light_distance",
+)
+
+
+class RestirButtonsPanel:
+    bl_space_type = "PROPERTIES"
+    bl_region_type = "WINDOW"
+    bl_context = "render"
+    COMPAT_ENGINES = {ENGINE}
+
+    @classmethod
+    def poll(cls, context):
+        return context.engine in cls.COMPAT_ENGINES
+
+
+class RESTIR_RENDER_PT_sampling(RestirButtonsPanel, bpy.types.Panel):
+    bl_label = "Sampling"
+
+    def draw(self, context):
+        layout = self.layout
+        layout.use_property_split = True
+        layout.use_property_decorate = False
+        settings = context.scene.restir_gi
+        layout.prop(settings, "mode")
+        col = layout.column(align=True)
+        col.prop(settings, "samples")
+        col.prop(settings, "seed")
+
+
+class RESTIR_RENDER_PT_light_paths(RestirButtonsPanel, bpy.types.Panel):
+    bl_label = "Light Paths"
+
+    def draw(self, context):
+        layout = self.layout
+        layout.use_property_split = True
+        layout.use_property_decorate = False
+        layout.prop(context.scene.restir_gi, "max_bounces")
+
+
+classes = (RESTIR_RENDER_PT_sampling, RESTIR_RENDER_PT_light_paths)
+
+
+def _adopted_panels():
+    for panel in bpy.types.Panel.__subclasses__():
+        engines = getattr(panel, "COMPAT_ENGINES", None)
+        if engines is None:
+            continue
+        if "BLENDER_RENDER" in engines or panel.__name__ in EXTRA_PANELS:
+            yield panel
+
+
+_adopted = []
 
 
 def register():
-    pass
+    for cls in classes:
+        bpy.utils.register_class(cls)
+    for panel in _adopted_panels():
+        if ENGINE not in panel.COMPAT_ENGINES:
+            panel.COMPAT_ENGINES.add(ENGINE)
+            _adopted.append(panel)
 
 
 def unregister():
-    pass
+    for panel in _adopted:
+        panel.COMPAT_ENGINES.discard(ENGINE)
+    _adopted.clear()
+    for cls in reversed(classes):
+        bpy.utils.unregister_class(cls)

@@ -80,11 +80,11 @@ class PassResult:
     albedo: np.ndarray      # (P, 3) diffuse + specular albedo (denoising albedo)
 
 
-def camera_pass(ctx, width, height, seed, frame, sample, max_bounces, pixel_filter):
-    """Path-trace one sample for every pixel."""
+def camera_pass(ctx, width, height, seed, frame, sample, max_bounces, pixel_filter, pixels=None):
+    """Path-trace one sample for every pixel (or for the pixel indices ``pixels``)."""
     scene = ctx.scene
-    n = width * height
-    pix = np.arange(n, dtype=np.int64)
+    pix = np.arange(width * height, dtype=np.int64) if pixels is None else np.asarray(pixels, np.int64)
+    n = len(pix)
     seeds = samplers.path_seeds(seed, frame, pix, sample)
     xy = np.stack([pix % width, pix // width], axis=1).astype(np.float32) + 0.5
     xy += pixel_filter.offsets(samplers.uniform2(seeds, samplers.DIM_CAMERA))
