@@ -50,3 +50,17 @@ def render_frame(ctx, settings, frame=0, on_sample=None, should_stop=None):
         if on_sample is not None:
             on_sample(film, time.perf_counter() - start)
     return film
+
+
+def render_restir(ctx, restir, settings, frame, warmup=1, on_frame=None, should_stop=None):
+    """Run ``warmup`` ReSTIR GI frames of the (unchanging) scene and return the
+    last FrameResult (None if stopped before the first). Each warm-up frame gets
+    its own random numbers; on_frame(i, result) follows every frame."""
+    result = None
+    for i in range(max(1, warmup)):
+        if should_stop is not None and should_stop():
+            break
+        result = restir.render_frame(ctx, settings, frame * 65536 + i)
+        if on_frame is not None:
+            on_frame(i, result)
+    return result

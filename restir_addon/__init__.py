@@ -2,15 +2,15 @@
 
 if "bpy" in locals():  # add-on reload: re-import submodules in order
     import importlib
-    for _name in ("properties", "engine", "ui"):
+    for _name in ("properties", "state", "engine", "ui"):
         if _name in locals():
             importlib.reload(locals()[_name])
 
 import bpy  # noqa: E402
 
-from . import engine, properties, ui  # noqa: E402
+from . import engine, properties, state, ui  # noqa: E402
 
-_modules = (properties, engine, ui)
+_modules = (properties, state, engine, ui)
 
 
 def register():

@@ -1,4 +1,9 @@
-"""Final and animation renders: export, render passes, write the result.
+"""Final and animation renders: export, render, write the result's passes.
+
+Path tracing accumulates ``samples`` passes per frame. The ReSTIR GI modes run
+one frame of resampling per animation frame, carrying reservoirs from the
+previous frame (state.py); a still render, or a frame that does not follow the
+last one rendered, first runs ``warmup_frames`` frames on the still scene.
 
 Every failure becomes a report and a valid (black or partial) result; the
 render never dies with a traceback.
@@ -11,6 +16,9 @@ import numpy as np
 
 from ..core import RenderContext, RenderSettings, render_frame
 from ..core.film import to_rgba
+from ..core.render import render_restir
+from ..core.restir import ReSTIRSettings
+from . import state
 from .export import export_scene
 from .export.camera import render_size
 from .passes import PASSES
@@ -21,34 +29,108 @@ UPDATE_INTERVAL = 1.0   # seconds between progressive result updates
 last_timings = {}
 
 
-def _settings(scene):
+def path_settings(scene):
     s = scene.restir_gi
     return RenderSettings(mode=s.mode, samples=s.samples, max_bounces=s.max_bounces, seed=s.seed)
 
 
-def _write(result, film, width, height):
-    """Copy the film's mean and AOVs into the render result's passes."""
+def restir_settings(scene):
+    s = scene.restir_gi
+    return ReSTIRSettings(
+        mode=s.mode, samples=s.samples, max_bounces=s.max_bounces, seed=s.seed,
+        initial_sampling=s.initial_sampling, temporal_M_cap=float(s.temporal_m_cap),
+        spatial_M_cap=float(s.spatial_m_cap), max_age=s.max_age,
+        spatial_neighbors=s.spatial_neighbors, spatial_radius=float(s.spatial_radius),
+        validation_interval=s.validation_interval)
+
+
+def film_images(film):
+    """Pass name -> (H, W, C) float32 from a path-traced Film."""
+    images = {"Combined": to_rgba(film.mean()), "Depth": film.aov("depth", 1),
+              "Normal": film.aov("normal", 3), "Denoising Albedo": film.aov("albedo", 3)}
+    if film.count == 0:
+        images["Depth"] = np.full_like(images["Depth"], 1e10)
+    return images
+
+
+def frame_images(frame, width, height):
+    """Pass name -> (H, W, C) float32 from a ReSTIR GI FrameResult."""
+    shape = (height, width)
+    reservoir = np.stack([frame.M, frame.W, np.zeros_like(frame.M)], axis=1)
+    return {"Combined": to_rgba(frame.color.reshape(*shape, 3)),
+            "Depth": frame.depth.reshape(*shape, 1), "Normal": frame.normal.reshape(*shape, 3),
+            "Denoising Albedo": frame.albedo.reshape(*shape, 3),
+            "ReSTIR Direct": frame.direct.reshape(*shape, 3),
+            "ReSTIR Indirect": frame.indirect.reshape(*shape, 3),
+            "ReSTIR Reservoir": reservoir.reshape(*shape, 3)}
+
+
+def _write(result, images, width, height):
+    """Copy images into the render result's passes (black where missing)."""
     layer = result.layers[0]
-    combined = to_rgba(film.mean()) if film is not None else to_rgba(np.zeros((height, width, 3)))
-    layer.passes["Combined"].rect.foreach_set(combined.ravel())
-    if film is None:
-        return
+    if images is None:
+        images = {"Combined": to_rgba(np.zeros((height, width, 3), np.float32))}
+    layer.passes["Combined"].rect.foreach_set(images["Combined"].ravel())
     for name, channels, _, _ in PASSES:
-        p = layer.passes.get(name) if hasattr(layer.passes, "get") else None
-        if p is None:
+        p = layer.passes.get(name)
+        data = images.get(name)
+        if p is None or data is None:
             continue
-        key = {"Depth": "depth", "Normal": "normal", "Denoising Albedo": "albedo"}[name]
-        data = film.aov(key, channels)
-        if name == "Depth" and film.count == 0:
-            data = np.full_like(data, 1e10)
         p.rect.foreach_set(np.nan_to_num(data, nan=0.0, posinf=1e10, neginf=0.0).astype(np.float32).ravel())
+
+
+def _render_path(engine, ctx, scene, result, width, height, export_s):
+    settings = path_settings(scene)
+    last_update = [time.perf_counter()]
+
+    def on_sample(f, seconds):
+        engine.update_progress(f.count / settings.samples)
+        engine.update_stats("", f"Frame {scene.frame_current} | Sample {f.count}/{settings.samples} "
+                                f"| {seconds:.1f} s (export {export_s:.2f} s)")
+        now = time.perf_counter()
+        if now - last_update[0] > UPDATE_INTERVAL:
+            _write(result, film_images(f), width, height)
+            engine.update_result(result)
+            last_update[0] = now
+
+    film = render_frame(ctx, settings, frame=scene.frame_current, on_sample=on_sample,
+                        should_stop=engine.test_break)
+    if film.count < settings.samples:
+        engine.report({"INFO"}, f"Render cancelled after {film.count} of {settings.samples} samples")
+    return film_images(film)
+
+
+def _render_restir(engine, ctx, scene, view_layer, width, height, export_s):
+    settings = restir_settings(scene)
+    stream = state.stream_for(scene.name, view_layer)
+    frame = scene.frame_current
+    follows = (engine.is_animation and stream.last_frame is not None
+               and frame == stream.last_frame + 1 and stream.restir.history is not None)
+    if not follows:
+        stream.restir.reset()
+    warmup = 1 if follows else scene.restir_gi.warmup_frames
+    start = time.perf_counter()
+
+    def on_frame(i, _result):
+        engine.update_progress((i + 1) / warmup)
+        engine.update_stats("", f"Frame {frame} | ReSTIR frame {i + 1}/{warmup} "
+                                f"| {time.perf_counter() - start:.1f} s (export {export_s:.2f} s)")
+
+    out = render_restir(ctx, stream.restir, settings, frame, warmup, on_frame=on_frame,
+                        should_stop=engine.test_break)
+    stream.last_frame = frame
+    if out is None:
+        engine.report({"INFO"}, "Render cancelled before the first frame finished")
+        stream.restir.reset()
+        return None
+    return frame_images(out, width, height)
 
 
 def render(engine, depsgraph):
     scene = depsgraph.scene
     width, height = render_size(scene)
     result = engine.begin_result(0, 0, width, height, layer=depsgraph.view_layer.name)
-    film = None
+    images = None
     try:
         engine.update_stats("", "Exporting scene")
         t0 = time.perf_counter()
@@ -62,38 +144,26 @@ def render(engine, depsgraph):
             engine.report({"WARNING"}, "The scene has no geometry to render")
         ctx = RenderContext.build(core_scene)
         export_s = time.perf_counter() - t0
-        settings = _settings(scene)
-        last_update = [time.perf_counter()]
-
-        def on_sample(f, seconds):
-            engine.update_progress(f.count / settings.samples)
-            engine.update_stats("", f"Frame {scene.frame_current} | Sample {f.count}/{settings.samples} "
-                                    f"| {seconds:.1f} s (export {export_s:.2f} s)")
-            now = time.perf_counter()
-            if now - last_update[0] > UPDATE_INTERVAL:
-                _write(result, f, width, height)
-                engine.update_result(result)
-                last_update[0] = now
-
         t1 = time.perf_counter()
         try:
-            film = render_frame(ctx, settings, frame=scene.frame_current, on_sample=on_sample,
-                                should_stop=engine.test_break)
+            if scene.restir_gi.mode == "PATH":
+                images = _render_path(engine, ctx, scene, result, width, height, export_s)
+            else:
+                images = _render_restir(engine, ctx, scene, depsgraph.view_layer.name, width, height,
+                                        export_s)
         finally:
             ctx.close()
         render_s = time.perf_counter() - t1
         last_timings.clear()
         last_timings.update(export=export_s, trace=ctx.accel.trace_seconds,
                             shade=render_s - ctx.accel.trace_seconds, rays=ctx.accel.rays_traced)
-        if film.count < settings.samples:
-            engine.report({"INFO"}, f"Render cancelled after {film.count} of {settings.samples} samples")
     except Exception as exc:  # report, never kill the render
         traceback.print_exc()
         engine.report({"ERROR"}, f"ReSTIR GI render failed: {exc}")
     finally:
         t2 = time.perf_counter()
         try:
-            _write(result, film, width, height)
+            _write(result, images, width, height)
         finally:
             engine.end_result(result)
         last_timings["write"] = time.perf_counter() - t2

@@ -5,6 +5,9 @@ PASSES = (
     ("Depth", 1, "Z", "VALUE"),
     ("Normal", 3, "XYZ", "VECTOR"),
     ("Denoising Albedo", 3, "RGB", "COLOR"),
+    ("ReSTIR Direct", 3, "RGB", "COLOR"),      # emission + direct light (ReSTIR modes)
+    ("ReSTIR Indirect", 3, "RGB", "COLOR"),    # the reservoirs' indirect light (ReSTIR modes)
+    ("ReSTIR Reservoir", 3, "XYZ", "VECTOR"),  # spatial reservoir M, W (debug)
 )
 
 

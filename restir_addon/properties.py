@@ -1,10 +1,22 @@
 """Settings of the engine, attached to every scene as ``scene.restir_gi``."""
 
 import bpy
-from bpy.props import EnumProperty, IntProperty, PointerProperty
+from bpy.props import EnumProperty, FloatProperty, IntProperty, PointerProperty
 
 MODE_ITEMS = (
     ("PATH", "Path Tracing", "Plain path tracing: samples per pixel, no reuse between frames"),
+    ("RESTIR_BIASED", "ReSTIR GI (Biased)",
+     "Reuse indirect-light samples across pixels and frames; 1/M weights: least noise, slightly dark "
+     "near contact shadows"),
+    ("RESTIR_UNBIASED", "ReSTIR GI (Unbiased)",
+     "Reuse indirect-light samples across pixels and frames; 1/Z weights with a visibility ray per "
+     "reused neighbour: converges to the path-traced result"),
+)
+
+INITIAL_SAMPLING_ITEMS = (
+    ("COSINE", "Cosine", "Cosine-weighted hemisphere directions for initial samples"),
+    ("UNIFORM", "Uniform", "Uniform hemisphere directions for initial samples (better for light "
+                           "arriving at grazing angles)"),
 )
 
 
@@ -17,8 +29,43 @@ class RestirGISceneSettings(bpy.types.PropertyGroup):
     )
     samples: IntProperty(
         name="Samples",
-        description="Samples per pixel per frame",
+        description="Path tracing: samples per pixel. ReSTIR GI: initial samples per pixel per frame",
         default=16, min=1, soft_max=1024, max=65536,
+    )
+    warmup_frames: IntProperty(
+        name="Warm-up Frames",
+        description="ReSTIR GI: frames of resampling run on the still scene before a still render or "
+                    "the first frame of an animation is written",
+        default=32, min=1, soft_max=128, max=4096,
+    )
+    initial_sampling: EnumProperty(
+        name="Initial Sampling", items=INITIAL_SAMPLING_ITEMS, default="COSINE",
+        description="How each pixel draws the direction of its new sample (glossy surfaces use their BSDF)",
+    )
+    temporal_m_cap: IntProperty(
+        name="Temporal M Cap", default=20, min=1, max=10000,
+        description="Cap on the number of past samples a temporal reservoir stands for",
+    )
+    spatial_m_cap: IntProperty(
+        name="Spatial M Cap", default=500, min=1, max=100000,
+        description="Cap on the number of samples a spatial reservoir carries over frames",
+    )
+    max_age: IntProperty(
+        name="Max Sample Age", default=30, min=1, max=10000,
+        description="Frames after which a reused sample is dropped",
+    )
+    spatial_neighbors: IntProperty(
+        name="Spatial Neighbors", default=4, min=0, max=32,
+        description="Neighbouring pixels whose reservoirs each pixel reuses per frame",
+    )
+    spatial_radius: FloatProperty(
+        name="Spatial Radius", default=16.0, min=1.0, soft_max=64.0, max=512.0, subtype="PIXEL",
+        description="Radius in pixels within which spatial neighbours are chosen",
+    )
+    validation_interval: IntProperty(
+        name="Validation Interval", default=4, min=0, max=1000,
+        description="Every this many frames, stored samples are re-traced and dropped where their "
+                    "light changed (0 = never)",
     )
     max_bounces: IntProperty(
         name="Max Bounces",

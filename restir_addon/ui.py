@@ -36,8 +36,34 @@ class RESTIR_RENDER_PT_sampling(RestirButtonsPanel, bpy.types.Panel):
         settings = context.scene.restir_gi
         layout.prop(settings, "mode")
         col = layout.column(align=True)
-        col.prop(settings, "samples")
+        col.prop(settings, "samples", text="Samples" if settings.mode == "PATH" else "Initial Samples")
+        if settings.mode != "PATH":
+            col.prop(settings, "warmup_frames")
         col.prop(settings, "seed")
+
+
+class RESTIR_RENDER_PT_resampling(RestirButtonsPanel, bpy.types.Panel):
+    bl_label = "Resampling"
+    bl_parent_id = "RESTIR_RENDER_PT_sampling"
+
+    @classmethod
+    def poll(cls, context):
+        return super().poll(context) and context.scene.restir_gi.mode != "PATH"
+
+    def draw(self, context):
+        layout = self.layout
+        layout.use_property_split = True
+        layout.use_property_decorate = False
+        s = context.scene.restir_gi
+        layout.prop(s, "initial_sampling")
+        col = layout.column(align=True)
+        col.prop(s, "temporal_m_cap")
+        col.prop(s, "max_age")
+        col = layout.column(align=True)
+        col.prop(s, "spatial_neighbors")
+        col.prop(s, "spatial_radius")
+        col.prop(s, "spatial_m_cap")
+        layout.prop(s, "validation_interval")
 
 
 class RESTIR_RENDER_PT_light_paths(RestirButtonsPanel, bpy.types.Panel):
@@ -50,7 +76,7 @@ class RESTIR_RENDER_PT_light_paths(RestirButtonsPanel, bpy.types.Panel):
         layout.prop(context.scene.restir_gi, "max_bounces")
 
 
-classes = (RESTIR_RENDER_PT_sampling, RESTIR_RENDER_PT_light_paths)
+classes = (RESTIR_RENDER_PT_sampling, RESTIR_RENDER_PT_resampling, RESTIR_RENDER_PT_light_paths)
 
 
 def _adopted_panels():

@@ -51,12 +51,14 @@ class ShadingFrame:
         return to_world(w_local, self.t, self.b, surf.ns).astype(np.float32)
 
 
-def direct_light(ctx, surf, frame, seeds, bounce, mis=True):
+def direct_light(ctx, surf, frame, seeds, bounce, mis=True, strategy_pdf=None):
     """Next-event estimation at surface hits: one light sample and one shadow ray each.
 
     Returns the reflected radiance toward wo, (N, 3). With ``mis`` the sample is
     weighted against BSDF sampling by the power heuristic; without it (a path's
     last vertex, whose BSDF ray is never traced) it has weight one.
+    strategy_pdf(wi_local) gives the pdf of the direction sampler it is weighted
+    against, when that is not the BSDF's own (ReSTIR's uniform initial samples).
     """
     n = len(surf)
     out = np.zeros((n, 3), np.float32)
@@ -70,7 +72,8 @@ def direct_light(ctx, surf, frame, seeds, bounce, mis=True):
     cos = np.maximum(wi_local[:, 2], 0.0)
     above = dot(ls.wi, surf.ng) > 0       # reflection only: the light must be on wo's side
     if mis:
-        pdf_b = bsdf.pdf(frame.params, frame.wo_local, wi_local)
+        pdf_b = (bsdf.pdf(frame.params, frame.wo_local, wi_local) if strategy_pdf is None
+                 else strategy_pdf(wi_local))
         w = np.where(ls.delta, 1.0, power_heuristic(ls.pdf, pdf_b))
     else:
         w = np.ones(n, np.float32)

@@ -1,0 +1,130 @@
+"""Reservoirs of ReSTIR GI as struct-of-arrays, one row per pixel.
+
+A reservoir holds one chosen *sample* (a secondary surface point x2 with its
+outgoing radiance and the seed of the path that estimated it) and the
+resampling state: w_sum (sum of resampling weights), M (number of candidates
+seen, a float so it can be capped and scaled) and W (the unbiased contribution
+weight of the chosen sample, in solid angle at the owning pixel's visible point).
+
+Weighted reservoir sampling over whole images: ``merge`` streams one candidate
+per row into every row at once, choosing it with probability w / w_sum.
+"""
+
+from dataclasses import dataclass, fields
+
+import numpy as np
+
+from .sampling import luminance
+
+
+@dataclass
+class Reservoirs:
+    # --- the chosen sample -------------------------------------------------
+    x2: np.ndarray      # (N, 3) sample point
+    ng2: np.ndarray     # (N, 3) geometric normal at x2, facing the visible point that found it
+    n2: np.ndarray      # (N, 3) shading normal at x2
+    wo2: np.ndarray     # (N, 3) direction from x2 back toward the point that found it
+    prim2: np.ndarray   # (N,) int32 triangle at x2; NO_SAMPLE, or WORLD_SAMPLE for the sky
+    mat2: np.ndarray    # (N,) int32 material at x2
+    lo: np.ndarray      # (N, 3) outgoing radiance of x2 (path traced, NEE + MIS)
+    pdf: np.ndarray     # (N,) source pdf (solid angle) of the direction that found x2
+    seed: np.ndarray    # (N,) uint64 seed of the path from x2 (for validation)
+    age: np.ndarray     # (N,) int32 frames since the sample was created
+    # --- resampling state --------------------------------------------------
+    w_sum: np.ndarray   # (N,)
+    M: np.ndarray       # (N,) float32
+    W: np.ndarray       # (N,)
+
+    NO_SAMPLE = -1
+    WORLD_SAMPLE = -2   # the ray escaped: x2 is a far point in its direction, lo the world
+    SAMPLE_FIELDS = ("x2", "ng2", "n2", "wo2", "prim2", "mat2", "lo", "pdf", "seed", "age")
+
+    def __len__(self):
+        return len(self.M)
+
+    @staticmethod
+    def empty(n):
+        z3 = lambda: np.zeros((n, 3), np.float32)  # noqa: E731
+        z1 = lambda: np.zeros(n, np.float32)  # noqa: E731
+        return Reservoirs(x2=z3(), ng2=z3(), n2=z3(), wo2=z3(), prim2=np.full(n, -1, np.int32),
+                          mat2=np.zeros(n, np.int32), lo=z3(), pdf=z1(), seed=np.zeros(n, np.uint64),
+                          age=np.zeros(n, np.int32), w_sum=z1(), M=z1(), W=z1())
+
+    def take(self, index):
+        """Rows gathered by an index array (a copy)."""
+        return Reservoirs(**{f.name: getattr(self, f.name)[index] for f in fields(self)})
+
+    def copy(self):
+        return Reservoirs(**{f.name: getattr(self, f.name).copy() for f in fields(self)})
+
+    def assign(self, mask, other):
+        """Overwrite rows where mask is True with the same rows of other."""
+        for f in fields(self):
+            dst = getattr(self, f.name)
+            dst[mask] = getattr(other, f.name)[mask]
+
+    def clear(self, mask):
+        """Forget the rows where mask is True."""
+        self.w_sum[mask] = 0
+        self.M[mask] = 0
+        self.W[mask] = 0
+        self.lo[mask] = 0
+        self.prim2[mask] = -1
+
+    @property
+    def valid(self):
+        return self.has_sample & (self.W > 0)
+
+    @property
+    def has_sample(self):
+        return self.prim2 != Reservoirs.NO_SAMPLE
+
+    @property
+    def nbytes(self):
+        return sum(getattr(self, f.name).nbytes for f in fields(self))
+
+
+def target(lo):
+    """Luminance of a sample's radiance: the factor of ReSTIR GI's target
+    function that does not depend on the receiving point (see restir/shift.py)."""
+    return np.maximum(luminance(lo), 0.0).astype(np.float32)
+
+
+def merge(dst, src, weight, M_src, u):
+    """Stream one candidate per row into dst, in place.
+
+    src: Reservoirs with the candidates (same length as dst); weight: their
+    resampling weights (0 where the candidate is worthless here); M_src: how
+    many candidates each stands for (0 where a row has no candidate: a
+    zero-weight candidate still counts in M); u: uniforms deciding replacement.
+    Returns the mask of rows whose chosen sample was replaced.
+    """
+    w = np.where(np.isfinite(weight) & (weight > 0), weight, 0.0).astype(np.float32)
+    dst.w_sum += w
+    dst.M += np.asarray(M_src, np.float32)
+    take = (w > 0) & (u * dst.w_sum < w)
+    if take.any():
+        for name in Reservoirs.SAMPLE_FIELDS:
+            getattr(dst, name)[take] = getattr(src, name)[take]
+    return take
+
+
+def finalize(res, p_hat, Z=None):
+    """Set W = w_sum / (Z p_hat(y)), with Z = M (biased 1/M) unless given (1/Z);
+    p_hat: the owner's target function at each row's chosen sample."""
+    z = res.M if Z is None else Z
+    den = z * p_hat
+    with np.errstate(invalid="ignore", divide="ignore"):
+        W = np.where(den > 0, res.w_sum / np.where(den > 0, den, 1.0), 0.0)
+    res.W[:] = np.where(np.isfinite(W), W, 0.0)
+    return res
+
+
+def cap_history(res, cap):
+    """Bound M, scaling w_sum with it, so old history keeps a bounded weight."""
+    over = res.M > cap
+    if over.any():
+        scale = np.where(over, cap / np.maximum(res.M, 1e-30), 1.0).astype(np.float32)
+        res.w_sum *= scale
+        res.M *= scale
+    return res

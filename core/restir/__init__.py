@@ -1,0 +1,143 @@
+"""ReSTIR GI (Ouyang et al. 2021) as whole-image passes, one call per frame.
+
+Per frame: primary visibility (gbuffer.py) -> initial samples (initial.py) ->
+temporal resampling (temporal.py) -> spatial resampling (spatial.py) -> final
+shading (shading.py); every few frames, sample validation (validation.py).
+``ReSTIRGI`` owns the state that lives between frames; everything else is
+plain functions of plain arrays.
+"""
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .. import samplers
+from ..camera import PixelFilter
+from ..reservoirs import Reservoirs, merge, finalize
+from .gbuffer import trace_gbuffer
+from .initial import COSINE, initial_samples
+from .shading import shade_indirect
+from .shift import target_at
+from .spatial import spatial_resample
+from .temporal import FrameHistory, reproject, temporal_resample
+from .validation import validate
+
+BIASED = "RESTIR_BIASED"
+UNBIASED = "RESTIR_UNBIASED"
+
+
+@dataclass
+class ReSTIRSettings:
+    mode: str = BIASED
+    samples: int = 1                # initial samples per pixel per frame
+    max_bounces: int = 4
+    seed: int = 0
+    initial_sampling: str = COSINE  # or "UNIFORM"
+    temporal: bool = True
+    spatial: bool = True
+    temporal_M_cap: float = 20.0
+    spatial_M_cap: float = 500.0
+    max_age: int = 30
+    spatial_neighbors: int = 4
+    spatial_radius: float = 16.0    # pixels
+    validation_interval: int = 4    # frames; 0 turns validation off
+
+
+@dataclass
+class FrameResult:
+    """One frame, full-image rows (pixel index y * width + x)."""
+    color: np.ndarray       # (P, 3)
+    direct: np.ndarray      # (P, 3) emission seen directly + direct light
+    indirect: np.ndarray    # (P, 3)
+    depth: np.ndarray
+    normal: np.ndarray
+    albedo: np.ndarray
+    M: np.ndarray           # (P,) spatial reservoir M
+    W: np.ndarray           # (P,) spatial reservoir W
+    history_found: float    # fraction of visible pixels with accepted temporal history
+
+
+class ReSTIRGI:
+    """Reservoirs and the previous frame: the temporal state of one image stream."""
+
+    def __init__(self):
+        self.history = None
+        self.frames = 0
+
+    def reset(self):
+        self.history = None
+        self.frames = 0
+
+    @property
+    def nbytes(self):
+        h = self.history
+        if h is None:
+            return 0
+        return h.temporal.nbytes + h.spatial.nbytes + sum(
+            a.nbytes for a in (h.p, h.n, h.ng, h.depth, h.valid, h.object_id))
+
+    def render_frame(self, ctx, settings, frame):
+        scene = ctx.scene
+        if self.history is not None and (self.history.width, self.history.height) != (scene.width, scene.height):
+            self.reset()
+        biased = settings.mode != UNBIASED
+        pixel_filter = PixelFilter(scene.filter_width)
+        gb = trace_gbuffer(ctx, settings.seed, frame, pixel_filter)
+        n = len(gb.valid)
+        pix = np.arange(n, dtype=np.int64)
+        seeds = samplers.path_seeds(settings.seed, frame, pix, 0x5EED)
+
+        # Initial samples (several per pixel are streamed into one reservoir).
+        initial, direct = initial_samples(ctx, gb, settings.seed, frame, 0, settings.max_bounces,
+                                          settings.initial_sampling)
+        for s in range(1, max(1, settings.samples)):
+            extra, d = initial_samples(ctx, gb, settings.seed, frame, s, settings.max_bounces,
+                                       settings.initial_sampling)
+            merge(initial, extra, extra.w_sum, extra.M, samplers.uniform(seeds, 10 + s))
+            direct += d
+        direct /= max(1, settings.samples)
+        finalize(initial, target_at(initial, gb.p, gb.ng, gb.n))
+
+        history = self.history
+        if history is not None and settings.validation_interval > 0 \
+                and self.frames % settings.validation_interval == 0:
+            validate(ctx, history.temporal, settings.max_bounces)
+            validate(ctx, history.spatial, settings.max_bounces)
+
+        prev_pix = reproject(scene, gb, history) if settings.temporal else np.full(n, -1, np.int64)
+        temporal = temporal_resample(initial, gb, history, prev_pix, samplers.uniform(seeds, 5),
+                                     settings.temporal_M_cap, settings.max_age, biased)
+
+        visible_own = None
+        if settings.spatial:
+            prev_spatial, prev_owner = None, None
+            if history is not None and (prev_pix >= 0).any():
+                q = np.maximum(prev_pix, 0)
+                prev_spatial = history.spatial.take(q)
+                prev_spatial.M = np.where(prev_pix >= 0, np.minimum(prev_spatial.M, settings.spatial_M_cap),
+                                          0.0).astype(np.float32)
+                prev_spatial.age += 1
+                prev_spatial.M[prev_spatial.age > settings.max_age] = 0
+                prev_owner = history.p[q]
+            spatial, visible_own = spatial_resample(ctx, gb, temporal, prev_spatial, prev_owner, seeds,
+                                                    settings.spatial_neighbors, settings.spatial_radius,
+                                                    biased)
+        else:
+            spatial = temporal
+        indirect = shade_indirect(ctx, gb, spatial, visible_own)
+        direct_total = gb.emission + direct
+        color = direct_total + indirect
+        np.nan_to_num(color, copy=False, nan=0.0, posinf=0.0, neginf=0.0)
+
+        self.history = FrameHistory(
+            width=gb.width, height=gb.height, camera=scene.camera, p=gb.p, n=gb.n,
+            ng=gb.ng, depth=gb.depth, valid=gb.valid, object_id=gb.object_id,
+            object_keys=list(getattr(scene, "object_keys", []) or []),
+            object_matrices=np.asarray(getattr(scene, "object_matrices", np.zeros((0, 4, 4)))),
+            temporal=temporal, spatial=spatial if settings.spatial else Reservoirs.empty(0).take(np.zeros(0, int)))
+        if not settings.spatial:
+            self.history.spatial = temporal
+        self.frames += 1
+        found = float((prev_pix[gb.index] >= 0).mean()) if len(gb.index) else 0.0
+        return FrameResult(color, direct_total, indirect, gb.depth, gb.n, gb.albedo,
+                           spatial.M.copy(), spatial.W.copy(), found)

@@ -1,0 +1,120 @@
+"""Initial samples: one secondary surface point per pixel, with its radiance.
+
+From each visible point x1 one direction is drawn (cosine-weighted or uniform
+over the hemisphere of the shading normal; glossy materials sample their BSDF),
+traced to the sample point x2, whose outgoing radiance toward x1 is estimated
+by the path tracer (NEE + MIS, up to max_bounces). The same ray also completes
+the direct lighting of x1: emitters it finds are weighted against NEE by MIS.
+A ray that escapes becomes a sky sample (the world is resampled like indirect
+light, since no light sampling covers it).
+"""
+
+import numpy as np
+
+from .. import bsdf, samplers
+from ..accel import offset_origins
+from ..integrators.base import ShadingFrame, direct_light
+from ..integrators.path import radiance_from_surface
+from ..interaction import surface_hits
+from ..reservoirs import Reservoirs, target
+from ..sampling import (cosine_hemisphere_pdf, dot, power_heuristic,
+                        square_to_cosine_hemisphere, square_to_uniform_hemisphere,
+                        uniform_hemisphere_pdf)
+
+COSINE = "COSINE"
+UNIFORM = "UNIFORM"
+
+
+def _source_pdf(params, wo_local, wi_local, sampling):
+    """Density of the initial direction sampler: the BSDF's own for glossy
+    materials, else the chosen hemisphere warp."""
+    glossy = params.p_spec > 0
+    if sampling == UNIFORM:
+        base = uniform_hemisphere_pdf(wi_local[:, 2])
+    else:
+        base = cosine_hemisphere_pdf(wi_local[:, 2])
+    if glossy.any():
+        base = np.where(glossy, bsdf.pdf(params, wo_local, wi_local), base)
+    return base.astype(np.float32)
+
+
+def world_distance(scene):
+    """Distance at which sky samples are placed: far beyond the scene."""
+    return np.float32(1e4 * scene.extent())
+
+
+def initial_samples(ctx, gb, seed, frame, sample, max_bounces, sampling=COSINE):
+    """Reservoirs (one per pixel, empty where nothing was hit) holding each
+    pixel's new sample, and the direct light of each pixel (P, 3)."""
+    scene = ctx.scene
+    n_pix = len(gb.valid)
+    res = Reservoirs.empty(n_pix)
+    direct = np.zeros((n_pix, 3), np.float32)
+    surf, index = gb.surf, gb.index
+    if len(index) == 0:
+        return res, direct
+    seeds = samplers.path_seeds(seed, frame, index, sample)
+    frame_sh = ShadingFrame.at(scene, surf)
+    params, wo_l = frame_sh.params, frame_sh.wo_local
+
+    # Direction: hemisphere warp, or the BSDF for glossy materials.
+    u_lobe = samplers.uniform(seeds, samplers.bounce_dim(0, samplers.D_LOBE))
+    u = samplers.uniform2(seeds, samplers.bounce_dim(0, samplers.D_BSDF_UV))
+    wi_l = square_to_uniform_hemisphere(u) if sampling == UNIFORM else square_to_cosine_hemisphere(u)
+    glossy = params.p_spec > 0
+    if glossy.any():
+        wi_b, _, _ = bsdf.sample(params.subset(glossy), wo_l[glossy], u_lobe[glossy], u[glossy])
+        wi_l[glossy] = wi_b
+    pdf = _source_pdf(params, wo_l, wi_l, sampling)
+    wi = frame_sh.world(surf, wi_l)
+    f = bsdf.evaluate(params, wo_l, wi_l)
+    cos = np.maximum(wi_l[:, 2], 0.0)
+    ok = (pdf > 0) & (dot(wi, surf.ng) > 0)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        weight = f * (cos / np.where(pdf > 0, pdf, 1.0))[:, None]
+    weight = np.where(ok[:, None] & np.isfinite(weight), weight, 0.0).astype(np.float32)
+
+    # Direct light: NEE weighted against this very sampler ...
+    strategy = lambda w_l: _source_pdf(params, wo_l, w_l, sampling)  # noqa: E731
+    d = direct_light(ctx, surf, frame_sh, seeds, 0, mis=True, strategy_pdf=strategy)
+
+    rows = np.nonzero(ok)[0]
+    o = offset_origins(surf.p[rows], surf.ng[rows], wi[rows], ctx.eps)
+    hits = ctx.accel.intersect_closest(o, wi[rows])
+    # ... plus what the sample ray finds: analytic lights, the world, emitters.
+    d[rows] += weight[rows] * ctx.lights.emitted_along(o, wi[rows], hits.t, pdf_bsdf=pdf[rows])
+    surf2, hit_idx = surface_hits(scene, o, wi[rows], hits)
+    rows2 = rows[hit_idx]
+    le = ctx.lights.triangle_emission(surf2.prim, surf2.front)
+    if (le.max(axis=1) > 0).any():
+        pdf_l = ctx.lights.pdf_triangle(surf2.prim, surf.p[rows2], surf2.p, -surf2.wo)
+        d[rows2] += weight[rows2] * le * power_heuristic(pdf[rows2], pdf_l)[:, None]
+    direct[index] = d
+
+    # The sample: x2 and its outgoing radiance toward x1 (its own emission is
+    # direct light of x1, counted above).
+    lo = radiance_from_surface(ctx, surf2, seeds[rows2], 1, max_bounces) if max_bounces >= 1 \
+        else np.zeros((len(rows2), 3), np.float32)
+    pix = index[rows2]
+    res.x2[pix], res.ng2[pix], res.n2[pix], res.wo2[pix] = surf2.p, surf2.ng, surf2.ns, surf2.wo
+    res.prim2[pix], res.mat2[pix] = surf2.prim, surf2.material
+    res.lo[pix], res.pdf[pix], res.seed[pix] = lo, pdf[rows2], seeds[rows2]
+    # Rays that escaped sample the world: a far point in their direction whose
+    # radiance is the world's, so sky light is resampled like any other.
+    miss = rows[~hits.hit]
+    if len(miss) and scene.world_color.max() > 0:
+        far = world_distance(scene)
+        pm = index[miss]
+        res.x2[pm] = surf.p[miss] + wi[miss] * far
+        res.ng2[pm] = res.n2[pm] = res.wo2[pm] = -wi[miss]
+        res.prim2[pm] = res.WORLD_SAMPLE
+        res.lo[pm] = scene.world_color
+        res.pdf[pm] = pdf[miss]
+        res.seed[pm] = seeds[miss]
+        rows2, pix = np.concatenate([rows2, miss]), np.concatenate([pix, pm])
+    p_hat = target(res.lo[pix]) * cos[rows2]
+    w = np.where(p_hat > 0, p_hat / pdf[rows2], 0.0).astype(np.float32)
+    res.w_sum[pix] = w
+    res.M[index] = 1.0          # every pixel with a visible point drew one candidate
+    res.W[pix] = np.where(p_hat > 0, 1.0 / pdf[rows2], 0.0)
+    return res, direct

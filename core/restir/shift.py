@@ -1,0 +1,51 @@
+"""Reconnection shift: reusing another pixel's sample x2 at this pixel's visible point.
+
+The sample keeps its point x2 and radiance; only the direction from the
+receiver changes, so its solid-angle density changes by the Jacobian
+
+    J = |cos phi_r| / |cos phi_q| * |x1_q - x2|^2 / |x1_r - x2|^2
+
+(cos phi: angle at x2 between its normal and the direction to each visible point).
+"""
+
+import numpy as np
+
+from ..reservoirs import target
+from ..sampling import dot
+
+J_MIN, J_MAX = 0.1, 10.0          # beyond these a shift is rejected
+J_CLAMP = (1.0 / 3.0, 3.0)        # biased mode clamps what is accepted
+
+
+def jacobian(x1_from, x1_to, x2, ng2):
+    """Solid-angle Jacobian of moving the sample x2 from visible point x1_from to x1_to."""
+    a = x1_from - x2
+    b = x1_to - x2
+    da2 = dot(a, a)
+    db2 = dot(b, b)
+    cos_a = np.abs(dot(a, ng2)) / np.sqrt(np.maximum(da2, 1e-30))
+    cos_b = np.abs(dot(b, ng2)) / np.sqrt(np.maximum(db2, 1e-30))
+    with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
+        j = (cos_b / cos_a) * (da2 / db2)
+    return np.where(np.isfinite(j), j, 0.0).astype(np.float32)
+
+
+def target_at(res, x1, ng1, ns1):
+    """Target function p_hat of each reservoir's sample at receivers (x1, ng1, ns1):
+    luminance of its radiance times the cosine at the receiver, zero where x2 is
+    behind the receiver's surface or the receiver behind x2's."""
+    to_x2 = res.x2 - x1
+    dist = np.sqrt(np.maximum(dot(to_x2, to_x2), 1e-30))
+    cos = dot(to_x2, ns1) / dist
+    facing = (dot(to_x2, ng1) > 0) & (dot(-to_x2, res.ng2) > 0) & res.has_sample & (cos > 0)
+    return np.where(facing, target(res.lo) * cos, 0.0).astype(np.float32)
+
+
+def shift_weight(res, x1_owner, x1_receiver, ng_receiver, ns_receiver, biased):
+    """Resampling weight p_hat_r(y) * W * M * J of reusing reservoirs at receivers."""
+    j = jacobian(x1_owner, x1_receiver, res.x2, res.ng2)
+    ok = (j >= J_MIN) & (j <= J_MAX)
+    if biased:
+        j = np.clip(j, *J_CLAMP)
+    w = target_at(res, x1_receiver, ng_receiver, ns_receiver) * res.W * res.M * j
+    return np.where(ok, w, 0.0).astype(np.float32)

@@ -1,0 +1,97 @@
+"""Spatial resampling: each pixel reuses the temporal reservoirs of k neighbours.
+
+Neighbours are drawn in a disk of the given radius (pixels) and accepted only
+if their visible point is geometrically similar (normal and depth tests, as
+the temporal pass). Their samples are shifted by reconnection (Jacobian in
+``shift``). The pixel's own reprojected spatial reservoir from last frame is
+merged too, so reuse accumulates over frames up to the spatial M cap.
+
+Biased: W = w_sum / (M p_hat). Unbiased: W = w_sum / (Z p_hat), Z summing M of
+the reused reservoirs whose visible point sees the chosen sample (one
+visibility ray each).
+"""
+
+import numpy as np
+
+from .. import samplers
+from ..integrators.base import shadow_rays
+from ..reservoirs import Reservoirs, finalize, merge
+from ..sampling import dot
+from .shift import shift_weight, target_at
+from .temporal import DEPTH_REL_MAX, NORMAL_COS_MIN
+
+D_SPATIAL = 1000            # first sampler dimension of the spatial pass
+
+
+def visible(ctx, x1, ng1, ns1, res):
+    """True where x1 sees its row's sample point (and each faces the other)."""
+    n = len(x1)
+    out = np.zeros(n, bool)
+    to = res.x2 - x1
+    dist = np.sqrt(np.maximum(dot(to, to), 1e-30))
+    wi = (to / dist[:, None]).astype(np.float32)
+    rows = np.nonzero(target_at(res, x1, ng1, ns1) > 0)[0]
+    if len(rows):
+        blocked = ctx.accel.occluded(*shadow_rays(ctx, x1[rows], ng1[rows], wi[rows], dist[rows]))
+        out[rows] = ~blocked
+    return out
+
+
+def spatial_resample(ctx, gb, temporal, prev_spatial, prev_owner_p, seeds, k, radius, biased):
+    """Spatial reservoirs of this frame, and (unbiased mode) the visibility of
+    each pixel's chosen sample from its own visible point, for final shading."""
+    n = len(gb.valid)
+    w, h = gb.width, gb.height
+    p, nrm, ng = gb.p, gb.n, gb.ng
+    valid = gb.valid
+    res = Reservoirs.empty(n)
+    candidates = []             # (owner x1, owner ng, M) per reused reservoir, for Z
+
+    own_w = target_at(temporal, p, ng, nrm) * temporal.W * temporal.M
+    merge(res, temporal, own_w, np.where(valid, temporal.M, 0.0), samplers.uniform(seeds, D_SPATIAL))
+    candidates.append((p, ng, nrm, np.where(valid, temporal.M, 0.0)))
+
+    if prev_spatial is not None:
+        pw = shift_weight(prev_spatial, prev_owner_p, p, ng, nrm, biased)
+        pm = np.where(valid, prev_spatial.M, 0.0)
+        merge(res, prev_spatial, pw, pm, samplers.uniform(seeds, D_SPATIAL + 1))
+        candidates.append((p, ng, nrm, pm))
+
+    pix = np.arange(n)
+    px, py = pix % w, pix // w
+    for i in range(k):
+        u = samplers.uniform2(seeds, D_SPATIAL + 2 + 3 * i)
+        r = radius * np.sqrt(u[:, 0])
+        phi = 2.0 * np.pi * u[:, 1]
+        nx = np.clip(np.rint(px + r * np.cos(phi)), 0, w - 1).astype(np.int64)
+        ny = np.clip(np.rint(py + r * np.sin(phi)), 0, h - 1).astype(np.int64)
+        nb = ny * w + nx
+        ok = valid & valid[nb] & (nb != pix)
+        ok &= dot(nrm, nrm[nb]) >= NORMAL_COS_MIN
+        ok &= np.abs(gb.depth[nb] - gb.depth) <= DEPTH_REL_MAX * gb.depth
+        src = temporal.take(nb)
+        weight = np.where(ok, shift_weight(src, p[nb], p, ng, nrm, biased), 0.0)
+        m = np.where(ok, src.M, 0.0)
+        merge(res, src, weight, m, samplers.uniform(seeds, D_SPATIAL + 4 + 3 * i))
+        candidates.append((p[nb], ng[nb], nrm[nb], m))
+
+    own_visible = None
+    p_hat = target_at(res, p, ng, nrm)
+    if biased:
+        finalize(res, p_hat)
+    else:
+        z = np.zeros(n, np.float32)
+        for x1_i, ng_i, ns_i, m_i in candidates:
+            if x1_i is p:
+                if own_visible is None:
+                    own_visible = visible(ctx, p, ng, nrm, res)
+                vis = own_visible
+            else:
+                vis = visible(ctx, x1_i, ng_i, ns_i, res)
+            z += np.where(vis, m_i, 0.0)
+        finalize(res, p_hat, z)
+        # Only the Z candidates that could have produced the sample vouch for it:
+        # reusing this reservoir later with confidence M > Z would inflate its
+        # weight by M / Z every frame.
+        res.M[:] = z
+    return res, own_visible

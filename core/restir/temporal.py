@@ -1,0 +1,113 @@
+"""Temporal resampling: last frame's reservoirs reused through reprojection.
+
+Each visible point is carried to where it was last frame (the object's previous
+transform, then the previous camera), the pixel there is accepted only if its
+surface was similar (normal and depth tests), and that pixel's reservoir is
+merged with this frame's new sample, its history capped at M_cap.
+"""
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..camera import project
+from ..reservoirs import Reservoirs, finalize, merge
+from ..sampling import dot
+from .shift import shift_weight, target_at
+
+NORMAL_COS_MIN = 0.9        # about 25 degrees
+DEPTH_REL_MAX = 0.1
+
+
+@dataclass
+class FrameHistory:
+    """What the next frame needs of this one (full-image arrays, one row per pixel)."""
+    width: int
+    height: int
+    camera: object
+    p: np.ndarray           # (P, 3) visible points
+    n: np.ndarray           # (P, 3) shading normals
+    ng: np.ndarray          # (P, 3) geometric normals
+    depth: np.ndarray       # (P,) view depth
+    valid: np.ndarray       # (P,) bool
+    object_id: np.ndarray   # (P,) int32
+    object_keys: list       # object key of each object id
+    object_matrices: np.ndarray  # (O, 4, 4)
+    temporal: Reservoirs
+    spatial: Reservoirs
+
+
+def _motion(scene, history, object_id):
+    """Per-pixel 4x4 matrices taking current positions to last frame's, from the
+    objects' transforms (identity where an object is new or did not move)."""
+    keys = getattr(scene, "object_keys", None)
+    mats = getattr(scene, "object_matrices", None)
+    if not keys or mats is None or not history.object_keys:
+        return None
+    prev_index = {k: i for i, k in enumerate(history.object_keys)}
+    o = len(keys)
+    motion = np.tile(np.eye(4, dtype=np.float64), (o, 1, 1))
+    moved = False
+    for i, key in enumerate(keys):
+        j = prev_index.get(key)
+        if j is None:
+            continue
+        cur, prev = np.asarray(mats[i], np.float64), np.asarray(history.object_matrices[j], np.float64)
+        if not np.allclose(cur, prev, atol=1e-7):
+            try:
+                motion[i] = prev @ np.linalg.inv(cur)
+                moved = True
+            except np.linalg.LinAlgError:
+                pass
+    if not moved:
+        return None
+    return motion[np.maximum(object_id, 0)]
+
+
+def reproject(scene, gb, history):
+    """Previous-frame pixel of every pixel (-1 where history is rejected)."""
+    n = len(gb.valid)
+    prev_pix = np.full(n, -1, np.int64)
+    if history is None or (history.width, history.height) != (gb.width, gb.height):
+        return prev_pix
+    idx = gb.index
+    p = gb.surf.p.astype(np.float64)
+    nrm = gb.surf.ns.astype(np.float64)
+    motion = _motion(scene, history, gb.object_id[idx])
+    if motion is not None:
+        p = np.einsum("nij,nj->ni", motion[:, :3, :3], p) + motion[:, :3, 3]
+        nrm = np.einsum("nij,nj->ni", motion[:, :3, :3], nrm)
+        nrm /= np.maximum(np.linalg.norm(nrm, axis=1, keepdims=True), 1e-30)
+    film, depth = project(history.camera, gb.width, gb.height, p)
+    x = np.floor(film[:, 0]).astype(np.int64)
+    y = np.floor(film[:, 1]).astype(np.int64)
+    inside = (x >= 0) & (x < gb.width) & (y >= 0) & (y < gb.height) & (depth > 0)
+    q = np.where(inside, y * gb.width + x, 0)
+    ok = inside & history.valid[q]
+    ok &= dot(nrm.astype(np.float32), history.n[q]) >= NORMAL_COS_MIN
+    ok &= np.abs(history.depth[q] - depth) <= DEPTH_REL_MAX * np.maximum(depth, 1e-6)
+    prev_pix[idx] = np.where(ok, q, -1)
+    return prev_pix
+
+
+def temporal_resample(initial, gb, history, prev_pix, u, M_cap, max_age, biased):
+    """This frame's temporal reservoirs: the reprojected history merged with the
+    new samples (finalised with 1/M)."""
+    n = len(gb.valid)
+    ok = prev_pix >= 0
+    if history is None or not ok.any():
+        return initial.copy()
+    # (initial is already finalised by the caller)
+    q = np.where(ok, prev_pix, 0)
+    prev = history.temporal.take(q)
+    prev.M = np.minimum(prev.M, M_cap).astype(np.float32)
+    prev.age += 1
+    ok &= prev.age <= max_age
+    p, ng, ns = gb.p, gb.ng, gb.n
+    w_prev = np.where(ok, shift_weight(prev, history.p[q], p, ng, ns, biased), 0.0)
+    res = prev
+    res.w_sum = w_prev.astype(np.float32)
+    res.M = np.where(ok, prev.M, 0.0).astype(np.float32)
+    res.prim2 = np.where(w_prev > 0, res.prim2, -1)
+    merge(res, initial, initial.w_sum, initial.M, u)
+    return finalize(res, target_at(res, p, ng, ns))

@@ -1,0 +1,48 @@
+"""Where ReSTIR GI's temporal state lives between frames.
+
+Blender makes a new RenderEngine for every animation frame unless persistent
+data is on, so the reservoirs of each (scene, view layer) stream live here,
+outside the engine, and are dropped when a file is loaded or the add-on is
+unregistered. Each stream remembers the last frame it rendered so a jump in
+time (not the next frame) starts over.
+"""
+
+import bpy
+
+from ..core.restir import ReSTIRGI
+
+_streams = {}
+
+
+class Stream:
+    def __init__(self):
+        self.restir = ReSTIRGI()
+        self.last_frame = None
+
+
+def stream_for(scene_name, layer_name):
+    key = (scene_name, layer_name)
+    if key not in _streams:
+        _streams[key] = Stream()
+    return _streams[key]
+
+
+@bpy.app.handlers.persistent
+def clear(*_args):
+    """Free every stream's buffers."""
+    _streams.clear()
+
+
+def stream_count():
+    return len(_streams)
+
+
+def register():
+    if clear not in bpy.app.handlers.load_pre:
+        bpy.app.handlers.load_pre.append(clear)
+
+
+def unregister():
+    if clear in bpy.app.handlers.load_pre:
+        bpy.app.handlers.load_pre.remove(clear)
+    clear()
