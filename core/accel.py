@@ -41,13 +41,17 @@ def _prepare(origins, directions, tmax):
         dist = np.array(np.broadcast_to(np.asarray(tmax, np.float32), (len(o),)), dtype=np.float32)
         if len(dist) != len(o):
             raise ValueError("tmax must have one entry per ray")
-    # Non-finite input must never reach Embree: such rays simply miss.
+    # Unbounded rays go as far as rays without tmax.
+    dist = np.where(dist == np.inf, _FAR, dist).astype(np.float32)
+    # Non-finite input must never reach Embree: such rays are traced as harmless
+    # stand-ins (which can still touch geometry through the origin at t = 0) and
+    # their results are discarded by the callers through ``bad``.
     bad = ~(np.isfinite(o).all(axis=1) & np.isfinite(d).all(axis=1) & (dist > 0))
     if bad.any():
         o = np.where(bad[:, None], 0.0, o).astype(np.float32)
         d = np.where(bad[:, None], np.float32([0, 0, 1]), d).astype(np.float32)
-        dist = np.where(bad | ~np.isfinite(dist), np.float32(1e-30), dist).astype(np.float32)
-    return o, d, dist
+        dist = np.where(bad, np.float32(1e-30), dist).astype(np.float32)
+    return o, d, dist, bad
 
 
 class Accel:
@@ -92,7 +96,7 @@ class Accel:
         return [f.result() for f in futures]
 
     def intersect_closest(self, origins, directions, tmax=None):
-        o, d, dist = _prepare(origins, directions, tmax)
+        o, d, dist, bad = _prepare(origins, directions, tmax)
         n = len(o)
         if self._scene is None or n == 0:
             return RayHits(np.full(n, np.inf, np.float32), np.full(n, -1, np.int32),
@@ -106,6 +110,7 @@ class Accel:
         self.trace_seconds += time.perf_counter() - t0
         self.rays_traced += n
         prim = np.concatenate([p["primID"] for p in parts]).astype(np.int32)
+        prim[bad] = -1
         t = np.concatenate([p["tfar"] for p in parts]).astype(np.float32)
         t = np.where(prim >= 0, t, np.inf).astype(np.float32)
         u = np.concatenate([p["u"] for p in parts]).astype(np.float32)
@@ -114,7 +119,7 @@ class Accel:
 
     def occluded(self, origins, directions, tmax):
         """True where something lies between origin and origin + tmax * direction."""
-        o, d, dist = _prepare(origins, directions, tmax)
+        o, d, dist, bad = _prepare(origins, directions, tmax)
         n = len(o)
         if self._scene is None or n == 0:
             return np.zeros(n, bool)
@@ -123,7 +128,7 @@ class Accel:
             return self._scene.run(o[a:b], d[a:b], dist[a:b], query="OCCLUDED")
 
         t0 = time.perf_counter()
-        blocked = np.concatenate(self._map(run, n)) >= 0
+        blocked = (np.concatenate(self._map(run, n)) >= 0) & ~bad
         self.trace_seconds += time.perf_counter() - t0
         self.rays_traced += n
         return blocked

@@ -53,9 +53,11 @@ def bsdf_params(materials, material_ids):
 # --- GGX ------------------------------------------------------------------
 
 def ggx_d(h, alpha):
-    a2 = alpha * alpha
-    c2 = h[:, 2] * h[:, 2]
-    den = c2 * (a2 - 1.0) + 1.0
+    # cos^2 (a2 - 1) + 1 written as sin^2 + a2 cos^2, with sin^2 from the tangential
+    # components: in float32 the other form cancels catastrophically for sharp lobes.
+    a2 = np.asarray(alpha, np.float64) ** 2
+    c2 = np.asarray(h[:, 2], np.float64) ** 2
+    den = (np.asarray(h[:, 0], np.float64) ** 2 + np.asarray(h[:, 1], np.float64) ** 2) + a2 * c2
     return np.where(h[:, 2] > 0, a2 / (np.pi * den * den), 0.0)
 
 

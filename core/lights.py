@@ -180,11 +180,14 @@ class LightSet:
         axis = (-lt.direction[li]).astype(np.float32)
         half = 0.5 * lt.angle[li]
         point = half <= 0
-        cos_max = np.cos(half)
+        # 1 - cos(half) without cancellation: the default sun (0.526 degrees) has
+        # 1 - cos ~ 1e-5, where float32 1 - cos(half) is off by up to a percent.
+        one_minus = 2.0 * np.sin(0.5 * np.asarray(half, np.float64)) ** 2
+        cos_max = 1.0 - one_minus
         local = square_to_uniform_cone(u, np.where(point, 1.0, cos_max))
         t, b = orthonormal_basis(axis)
         wi = np.where(point[:, None], axis, to_world(local, t, b, axis)).astype(np.float32)
-        solid = 2.0 * np.pi * (1.0 - cos_max)
+        solid = 2.0 * np.pi * one_minus
         sin2 = np.sin(half) ** 2
         radiance = lt.power[li] / np.maximum(np.pi * sin2, 1e-30)[:, None]
         rad = np.where(point[:, None], lt.power[li], radiance)
@@ -289,7 +292,8 @@ class LightSet:
                     # Disk through c facing the ray origin.
                     nrm = -oc / np.sqrt(d2)[:, None]
                     den = np.einsum("ij,ij->i", d, nrm)
-                    t = -np.einsum("ij,ij->i", oc, nrm) / np.where(den < 0, den, -1.0)
+                    # (c - o) . nrm = -|c - o| and den < 0, so t > 0 in front of the ray.
+                    t = np.einsum("ij,ij->i", oc, nrm) / np.where(den < 0, den, -1.0)
                     q = o + d * t[:, None] - c
                     hit = (den < 0) & (t > 0) & (t < tmax) & (np.einsum("ij,ij->i", q, q) <= r * r)
                     pdf_light = pmf * t * t / (np.maximum(-den, 1e-12) * np.pi * r * r)
