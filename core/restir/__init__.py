@@ -41,6 +41,7 @@ class ReSTIRSettings:
     spatial_neighbors: int = 4
     spatial_radius: float = 16.0    # pixels
     validation_interval: int = 4    # frames; 0 turns validation off
+    light_samples: int = 1          # NEE samples for the direct light of each visible point
 
 
 @dataclass
@@ -89,10 +90,10 @@ class ReSTIRGI:
 
         # Initial samples (several per pixel are streamed into one reservoir).
         initial, direct = initial_samples(ctx, gb, settings.seed, frame, 0, settings.max_bounces,
-                                          settings.initial_sampling)
+                                          settings.initial_sampling, settings.light_samples)
         for s in range(1, max(1, settings.samples)):
             extra, d = initial_samples(ctx, gb, settings.seed, frame, s, settings.max_bounces,
-                                       settings.initial_sampling)
+                                       settings.initial_sampling, settings.light_samples)
             merge(initial, extra, extra.w_sum, extra.M, samplers.uniform(seeds, 10 + s))
             direct += d
         direct /= max(1, settings.samples)

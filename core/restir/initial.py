@@ -43,9 +43,11 @@ def world_distance(scene):
     return np.float32(1e4 * scene.extent())
 
 
-def initial_samples(ctx, gb, seed, frame, sample, max_bounces, sampling=COSINE):
+def initial_samples(ctx, gb, seed, frame, sample, max_bounces, sampling=COSINE, light_samples=1):
     """Reservoirs (one per pixel, empty where nothing was hit) holding each
-    pixel's new sample, and the direct light of each pixel (P, 3)."""
+    pixel's new sample, and the direct light of each pixel (P, 3), estimated
+    with ``light_samples`` NEE samples averaged (each keeps its one-sample MIS
+    weight, so with the sample ray's own weight they still sum to one)."""
     scene = ctx.scene
     n_pix = len(gb.valid)
     res = Reservoirs.empty(n_pix)
@@ -77,6 +79,10 @@ def initial_samples(ctx, gb, seed, frame, sample, max_bounces, sampling=COSINE):
     # Direct light: NEE weighted against this very sampler ...
     strategy = lambda w_l: _source_pdf(params, wo_l, w_l, sampling)  # noqa: E731
     d = direct_light(ctx, surf, frame_sh, seeds, 0, mis=True, strategy_pdf=strategy)
+    for k in range(1, light_samples):   # more shadow rays: direct light is not resampled
+        d += direct_light(ctx, surf, frame_sh, samplers.hash_keys(seeds, k), 0, mis=True,
+                          strategy_pdf=strategy)
+    d /= max(light_samples, 1)
 
     rows = np.nonzero(ok)[0]
     o = offset_origins(surf.p[rows], surf.ng[rows], wi[rows], ctx.eps)
