@@ -9,7 +9,6 @@ All figures are medians over the repeats, taken in one run.
 """
 
 import argparse
-import importlib.util
 import os
 import statistics
 import sys
@@ -19,20 +18,8 @@ from pathlib import Path
 
 import numpy as np
 
-ROOT = Path(__file__).resolve().parent.parent
-sys.path.insert(0, str(ROOT))
-
-
-def load_addon():
-    os.environ.setdefault("BLENDER_USER_RESOURCES", tempfile.mkdtemp(prefix="restir-bench-"))
-    import bpy  # noqa: F401
-    spec = importlib.util.spec_from_file_location("restir_gi", ROOT / "__init__.py",
-                                                  submodule_search_locations=[str(ROOT)])
-    module = importlib.util.module_from_spec(spec)
-    sys.modules["restir_gi"] = module
-    spec.loader.exec_module(module)
-    module.register()
-    return module
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from bench_common import ROOT, load_addon  # noqa: E402
 
 
 class Recorder:

@@ -18,6 +18,21 @@ from .sampling import luminance
 
 
 @dataclass
+class SampleView:
+    """The fields of gathered rows that resampling weights need (no copies of the rest)."""
+    x2: np.ndarray
+    ng2: np.ndarray
+    lo: np.ndarray
+    prim2: np.ndarray
+    W: np.ndarray
+    M: np.ndarray
+
+    @property
+    def has_sample(self):
+        return self.prim2 != Reservoirs.NO_SAMPLE
+
+
+@dataclass
 class Reservoirs:
     # --- the chosen sample -------------------------------------------------
     x2: np.ndarray      # (N, 3) sample point
@@ -53,6 +68,11 @@ class Reservoirs:
     def take(self, index):
         """Rows gathered by an index array (a copy)."""
         return Reservoirs(**{f.name: getattr(self, f.name)[index] for f in fields(self)})
+
+    def view(self, index):
+        """SampleView of rows gathered by an index array."""
+        return SampleView(self.x2[index], self.ng2[index], self.lo[index], self.prim2[index],
+                          self.W[index], self.M[index])
 
     def copy(self):
         return Reservoirs(**{f.name: getattr(self, f.name).copy() for f in fields(self)})
@@ -90,13 +110,15 @@ def target(lo):
     return np.maximum(luminance(lo), 0.0).astype(np.float32)
 
 
-def merge(dst, src, weight, M_src, u):
+def merge(dst, src, weight, M_src, u, index=None):
     """Stream one candidate per row into dst, in place.
 
     src: Reservoirs with the candidates (same length as dst); weight: their
     resampling weights (0 where the candidate is worthless here); M_src: how
     many candidates each stands for (0 where a row has no candidate: a
-    zero-weight candidate still counts in M); u: uniforms deciding replacement.
+    zero-weight candidate still counts in M); u: uniforms deciding replacement;
+    index: if given, row i's candidate is src row index[i] (src is then any
+    length: only the rows that win are gathered).
     Returns the mask of rows whose chosen sample was replaced.
     """
     w = np.where(np.isfinite(weight) & (weight > 0), weight, 0.0).astype(np.float32)
@@ -104,8 +126,9 @@ def merge(dst, src, weight, M_src, u):
     dst.M += np.asarray(M_src, np.float32)
     take = (w > 0) & (u * dst.w_sum < w)
     if take.any():
+        rows = take if index is None else index[take]
         for name in Reservoirs.SAMPLE_FIELDS:
-            getattr(dst, name)[take] = getattr(src, name)[take]
+            getattr(dst, name)[take] = getattr(src, name)[rows]
     return take
 
 

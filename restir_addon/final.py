@@ -41,7 +41,7 @@ def restir_settings(scene):
         initial_sampling=s.initial_sampling, temporal_M_cap=float(s.temporal_m_cap),
         spatial_M_cap=float(s.spatial_m_cap), max_age=s.max_age,
         spatial_neighbors=s.spatial_neighbors, spatial_radius=float(s.spatial_radius),
-        validation_interval=s.validation_interval)
+        validation_interval=s.validation_interval, light_samples=s.light_samples)
 
 
 def film_images(film):
@@ -110,8 +110,10 @@ def _render_restir(engine, ctx, scene, view_layer, width, height, export_s):
         stream.restir.reset()
     warmup = 1 if follows else scene.restir_gi.warmup_frames
     start = time.perf_counter()
+    done = [0]
 
     def on_frame(i, _result):
+        done[0] = i + 1
         engine.update_progress((i + 1) / warmup)
         engine.update_stats("", f"Frame {frame} | ReSTIR frame {i + 1}/{warmup} "
                                 f"| {time.perf_counter() - start:.1f} s (export {export_s:.2f} s)")
@@ -123,6 +125,8 @@ def _render_restir(engine, ctx, scene, view_layer, width, height, export_s):
         engine.report({"INFO"}, "Render cancelled before the first frame finished")
         stream.restir.reset()
         return None
+    if done[0] < warmup:
+        engine.report({"INFO"}, f"Render cancelled after {done[0]} of {warmup} warm-up frames")
     return frame_images(out, width, height)
 
 
@@ -142,6 +146,10 @@ def render(engine, depsgraph):
             return
         if core_scene.triangle_count == 0:
             engine.report({"WARNING"}, "The scene has no geometry to render")
+        emissive = core_scene.materials.emission[core_scene.material_ids].any()
+        if not (len(core_scene.lights) or core_scene.world_color.any() or emissive):
+            engine.report({"WARNING"}, "The scene has no light source (no lights, emissive "
+                                       "materials or world light): the image is black")
         ctx = RenderContext.build(core_scene)
         export_s = time.perf_counter() - t0
         t1 = time.perf_counter()

@@ -62,6 +62,11 @@ class RestirGISceneSettings(bpy.types.PropertyGroup):
         name="Spatial Radius", default=16.0, min=1.0, soft_max=64.0, max=512.0, subtype="PIXEL",
         description="Radius in pixels within which spatial neighbours are chosen",
     )
+    light_samples: IntProperty(
+        name="Light Samples", default=4, min=1, max=64,
+        description="ReSTIR GI: shadow rays per pixel per frame for the direct light of the visible "
+                    "point (direct light is not resampled)",
+    )
     validation_interval: IntProperty(
         name="Validation Interval", default=4, min=0, max=1000,
         description="Every this many frames, stored samples are re-traced and dropped where their "

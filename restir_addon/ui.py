@@ -56,6 +56,7 @@ class RESTIR_RENDER_PT_resampling(RestirButtonsPanel, bpy.types.Panel):
         layout.use_property_decorate = False
         s = context.scene.restir_gi
         layout.prop(s, "initial_sampling")
+        layout.prop(s, "light_samples")
         col = layout.column(align=True)
         col.prop(s, "temporal_m_cap")
         col.prop(s, "max_age")

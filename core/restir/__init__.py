@@ -41,7 +41,7 @@ class ReSTIRSettings:
     spatial_neighbors: int = 4
     spatial_radius: float = 16.0    # pixels
     validation_interval: int = 4    # frames; 0 turns validation off
-    light_samples: int = 1          # NEE samples for the direct light of each visible point
+    light_samples: int = 4          # NEE samples for the direct light of each visible point
 
 
 @dataclass

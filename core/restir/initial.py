@@ -79,10 +79,16 @@ def initial_samples(ctx, gb, seed, frame, sample, max_bounces, sampling=COSINE, 
     # Direct light: NEE weighted against this very sampler ...
     strategy = lambda w_l: _source_pdf(params, wo_l, w_l, sampling)  # noqa: E731
     d = direct_light(ctx, surf, frame_sh, seeds, 0, mis=True, strategy_pdf=strategy)
-    for k in range(1, light_samples):   # more shadow rays: direct light is not resampled
-        d += direct_light(ctx, surf, frame_sh, samplers.hash_keys(seeds, k), 0, mis=True,
-                          strategy_pdf=strategy)
-    d /= max(light_samples, 1)
+    if light_samples > 1:   # more shadow rays, in one batch: direct light is not resampled
+        k = light_samples - 1
+        rep = np.tile(np.arange(len(index)), k)
+        surf_k = surf.subset(rep)
+        frame_k = ShadingFrame.at(scene, surf_k)
+        seeds_k = samplers.hash_keys(np.repeat(np.arange(1, k + 1), len(index)), seeds[rep])
+        params_k, wo_k = frame_k.params, frame_k.wo_local
+        strategy_k = lambda w_l: _source_pdf(params_k, wo_k, w_l, sampling)  # noqa: E731
+        more = direct_light(ctx, surf_k, frame_k, seeds_k, 0, mis=True, strategy_pdf=strategy_k)
+        d = (d + more.reshape(k, len(index), 3).sum(axis=0)) / light_samples
 
     rows = np.nonzero(ok)[0]
     o = offset_origins(surf.p[rows], surf.ng[rows], wi[rows], ctx.eps)

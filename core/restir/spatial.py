@@ -69,10 +69,10 @@ def spatial_resample(ctx, gb, temporal, prev_spatial, prev_owner_p, seeds, k, ra
         ok = valid & valid[nb] & (nb != pix)
         ok &= dot(nrm, nrm[nb]) >= NORMAL_COS_MIN
         ok &= np.abs(gb.depth[nb] - gb.depth) <= DEPTH_REL_MAX * gb.depth
-        src = temporal.take(nb)
+        src = temporal.view(nb)
         weight = np.where(ok, shift_weight(src, p[nb], p, ng, nrm, biased), 0.0)
         m = np.where(ok, src.M, 0.0)
-        merge(res, src, weight, m, samplers.uniform(seeds, D_SPATIAL + 4 + 3 * i))
+        merge(res, temporal, weight, m, samplers.uniform(seeds, D_SPATIAL + 4 + 3 * i), index=nb)
         candidates.append((p[nb], ng[nb], nrm[nb], m))
 
     own_visible = None
