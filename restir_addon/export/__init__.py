@@ -99,16 +99,28 @@ def export_scene(depsgraph, width=None, height=None):
         return np.concatenate(parts).astype(dtype) if parts else np.zeros(shape, dtype)
 
     camera = export_camera(depsgraph, warn)
+    vertices, triangles = cat(verts, (0, 3), np.float32), cat(tris, (0, 3), np.int32)
+    per_tri = [cat(mids, (0,), np.int32), cat(normals, (0, 3, 3), np.float32),
+               cat(uvs, (0, 3, 2), np.float32), cat(oids, (0,), np.int32)]
+    bad_vertex = ~np.isfinite(vertices).all(axis=1)
+    if bad_vertex.any():
+        # Non-finite vertices would poison the scene bounds (and every ray offset
+        # derived from them) even when no kept triangle uses them: drop the
+        # triangles that use them and neutralise the vertices.
+        keep = ~bad_vertex[triangles].any(axis=1)
+        warn(f"Skipped {int((~keep).sum())} triangle(s) with non-finite vertex coordinates")
+        triangles, per_tri = triangles[keep], [a[keep] for a in per_tri]
+        vertices[bad_vertex] = 0.0
     scene = make_scene(
-        cat(verts, (0, 3), np.float32), cat(tris, (0, 3), np.int32),
-        material_ids=cat(mids, (0,), np.int32),
+        vertices, triangles,
+        material_ids=per_tri[0],
         materials=Materials.from_list(materials.rows),
         lights=Lights.from_list(light_rows),
         camera=camera,
         world_color=export_world(bscene.world, warn),
-        normals=cat(normals, (0, 3, 3), np.float32),
-        uvs=cat(uvs, (0, 3, 2), np.float32),
-        object_ids=cat(oids, (0,), np.int32),
+        normals=per_tri[1],
+        uvs=per_tri[2],
+        object_ids=per_tri[3],
         width=width, height=height,
         filter_width=float(bscene.render.filter_size),
     )

@@ -26,7 +26,7 @@ def light_row(light_object, matrix, warn):
         "direction": -unit[:, 2],
         "axis_u": unit[:, 0],
         "axis_v": unit[:, 1],
-        "power": color * float(light.energy),
+        "power": color * float(light.energy) * 2.0 ** float(getattr(light, "exposure", 0.0)),
     }
     row["camera_visible"] = bool(getattr(light_object, "visible_camera", False))
     if light.type in ("POINT", "SPOT"):

@@ -8,7 +8,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-GEOMETRY_TYPES = {"MESH", "CURVE", "SURFACE", "FONT", "META", "CURVES"}
+# Curve, surface, text and metaball objects are not listed: the depsgraph hands
+# their evaluated geometry over as a separate MESH instance (the one Cycles
+# renders), so converting the objects themselves would add every triangle twice.
+GEOMETRY_TYPES = {"MESH", "CURVES"}
 
 
 @dataclass
@@ -33,6 +36,9 @@ def read_mesh(me):
     pos = _get(me.attributes["position"].data, "vector", np.float32, 3, nv)
     tris = me.loop_triangles
     nt = len(tris)
+    if nt == 0:     # vertices or edges only: a mesh without faces has no corner attributes
+        return MeshData(pos, np.zeros((0, 3), np.int32), np.zeros((0, 3, 3), np.float32),
+                        np.zeros((0, 3, 2), np.float32), np.zeros(0, np.int32))
     loops = _get(tris, "loops", np.int32, 3, nt)
     corner_vert = _get(me.attributes[".corner_vert"].data, "value", np.int32, 1, len(me.loops))
     tri_vert = corner_vert[loops] if nt else np.zeros((0, 3), np.int32)

@@ -1,0 +1,674 @@
+"""Export of Blender scenes to core.Scene: geometry, instancing, materials,
+lights, world and camera, each checked against values computed here from the
+numbers the scene was built with (never against the exporter's own helpers).
+
+Every test starts from an empty factory file and builds its scene from numpy
+arrays, so nothing depends on the startup file or on other tests.
+"""
+
+import math
+
+import numpy as np
+import pytest
+
+W, H = 32, 24
+
+
+# ---------------------------------------------------------------- helpers
+
+def fresh():
+    import bpy
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    scene = bpy.context.scene
+    scene.render.resolution_x, scene.render.resolution_y = W, H
+    scene.render.resolution_percentage = 100
+    return scene
+
+
+def add_mesh(name, verts, faces, collection=None, location=(0, 0, 0), rotation=(0, 0, 0),
+             scale=(1, 1, 1)):
+    import bpy
+    verts = np.asarray(verts, np.float64).reshape(-1, 3)
+    me = bpy.data.meshes.new(name)
+    me.from_pydata(verts.tolist(), [], [[int(i) for i in f] for f in faces])
+    me.update()
+    ob = bpy.data.objects.new(name, me)
+    ob.location, ob.rotation_euler, ob.scale = location, rotation, scale
+    (collection or bpy.context.scene.collection).objects.link(ob)
+    return ob
+
+
+def grid(nx, ny, size=1.0):
+    """A flat nx x ny quad grid in the z = 0 plane, centred, side `size`."""
+    xs = np.linspace(-size / 2, size / 2, nx + 1)
+    ys = np.linspace(-size / 2, size / 2, ny + 1)
+    gx, gy = np.meshgrid(xs, ys, indexing="xy")
+    verts = np.stack([gx.ravel(), gy.ravel(), np.zeros(gx.size)], axis=1)
+    i = np.arange(ny)[:, None] * (nx + 1) + np.arange(nx)[None, :]
+    faces = np.stack([i, i + 1, i + nx + 2, i + nx + 1], axis=-1).reshape(-1, 4)
+    return verts, faces
+
+
+QUAD = (np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 0]], float), [[0, 1, 2, 3]])
+TRI = (np.array([[0, 0, 0], [0.5, 0, 0], [0, 0.25, 0]], float), [[0, 1, 2]])
+
+
+def trs(location, rotation, scale):
+    """4x4 matrix of Blender's loc/rot(XYZ Euler)/scale, built independently of bpy."""
+    ax, ay, az = rotation
+    rx = np.array([[1, 0, 0], [0, math.cos(ax), -math.sin(ax)], [0, math.sin(ax), math.cos(ax)]])
+    ry = np.array([[math.cos(ay), 0, math.sin(ay)], [0, 1, 0], [-math.sin(ay), 0, math.cos(ay)]])
+    rz = np.array([[math.cos(az), -math.sin(az), 0], [math.sin(az), math.cos(az), 0], [0, 0, 1]])
+    m = np.eye(4)
+    m[:3, :3] = rz @ ry @ rx @ np.diag(scale)
+    m[:3, 3] = location
+    return m
+
+
+def apply(m, pts):
+    return np.asarray(pts, float) @ m[:3, :3].T + m[:3, 3]
+
+
+def material(name, node_type=None, **inputs):
+    """A node material whose Surface is a new node of `node_type` (default: the
+    Principled BSDF the material starts with), inputs set by socket name."""
+    import bpy
+    mat = bpy.data.materials.new(name)
+    tree = mat.node_tree
+    out = next(n for n in tree.nodes if n.type == "OUTPUT_MATERIAL")
+    node = next(n for n in tree.nodes if n.type == "BSDF_PRINCIPLED")
+    if node_type is not None:
+        tree.nodes.remove(node)
+        node = tree.nodes.new(node_type)
+        tree.links.new(node.outputs[0], out.inputs["Surface"])
+    for key, value in inputs.items():
+        node.inputs[key.replace("_", " ")].default_value = value
+    return mat
+
+
+def export(addon, width=W, height=H):
+    """core.Scene of the current (viewport-evaluated) depsgraph."""
+    import bpy
+    dg = bpy.context.evaluated_depsgraph_get()
+    scene, has_camera = addon.restir_addon.export.export_scene(dg, width, height)
+    return scene
+
+
+def export_for_render(addon, monkeypatch):
+    """core.Scene the engine builds in a real final render (render-mode depsgraph:
+    render visibility, render subdivision levels)."""
+    import bpy
+    final = addon.restir_addon.final
+    captured = []
+    real = final.export_scene
+
+    def spy(depsgraph, width=None, height=None):
+        out = real(depsgraph, width, height)
+        captured.append(out[0])
+        return out
+
+    monkeypatch.setattr(final, "export_scene", spy)
+    scene = bpy.context.scene
+    if scene.camera is None:
+        cam = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))
+        cam.location = (0, 0, 10)
+        scene.collection.objects.link(cam)
+        scene.camera = cam
+    scene.render.engine = "RESTIR_GI"
+    scene.restir_gi.samples = 1
+    scene.render.resolution_x = scene.render.resolution_y = 8
+    bpy.ops.render.render()
+    assert len(captured) == 1
+    return captured[0]
+
+
+def tri_counts(s):
+    """{object name: triangle count} of an exported scene."""
+    counts = np.bincount(s.object_ids, minlength=len(s.object_names))
+    return {name: int(counts[i]) for i, name in enumerate(s.object_names)}
+
+
+def tri_points(s, name=None):
+    """(T, 3, 3) world-space corners of the triangles (of one object)."""
+    p = s.vertices[s.triangles]
+    if name is not None:
+        p = p[s.object_ids == s.object_names.index(name)]
+    return p
+
+
+def area(p):
+    return 0.5 * np.linalg.norm(np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]), axis=1)
+
+
+def row(s, name):
+    """Material row (as a dict of arrays) of the material called `name`."""
+    i = s.materials.names.index(name)
+    m = s.materials
+    return {"base_color": m.base_color[i], "metallic": m.metallic[i], "roughness": m.roughness[i],
+            "specular": m.specular[i], "ior": m.ior[i], "emission": m.emission[i], "id": i}
+
+
+def light(s, name):
+    i = s.lights.names.index(name)
+    L = s.lights
+    return {k: getattr(L, k)[i] for k in ("kind", "position", "direction", "axis_u", "axis_v",
+                                          "power", "radius", "spot_size", "spot_blend", "angle",
+                                          "shape", "size_u", "size_v", "soft_falloff",
+                                          "camera_visible")}
+
+
+def add_light(name, kind, location=(0, 0, 0), rotation=(0, 0, 0), scale=(1, 1, 1), **props):
+    import bpy
+    data = bpy.data.lights.new(name, kind)
+    for key, value in props.items():
+        setattr(data, key, value)
+    ob = bpy.data.objects.new(name, data)
+    ob.location, ob.rotation_euler, ob.scale = location, rotation, scale
+    bpy.context.scene.collection.objects.link(ob)
+    return ob
+
+
+# ---------------------------------------------------------------- geometry
+
+def test_mesh_triangles_in_world_space(addon):
+    fresh()
+    verts = np.concatenate([QUAD[0], TRI[0] + [2, 0, 0]])
+    loc, rot, scl = (1.0, -2.0, 3.0), (0.3, -0.4, 1.1), (2.0, 0.5, 1.5)
+    add_mesh("obj", verts, [[0, 1, 2, 3], [4, 5, 6]], location=loc, rotation=rot, scale=scl)
+    s = export(addon)
+    m = trs(loc, rot, scl)
+    expected = apply(m, verts)
+
+    assert s.triangle_count == 3
+    np.testing.assert_allclose(s.vertices, expected, atol=1e-5)
+    # The quad splits into two triangles over its own four corners, the triangle stays.
+    tri_sets = sorted(sorted(t) for t in s.triangles.tolist())
+    assert tri_sets[-1] == [4, 5, 6]
+    assert all(set(t) <= {0, 1, 2, 3} for t in tri_sets[:2])
+    p = tri_points(s)
+    quad_area = np.linalg.norm(np.cross(expected[1] - expected[0], expected[3] - expected[0]))
+    np.testing.assert_allclose(area(p).sum(), quad_area + area(expected[None, 4:7])[0], rtol=1e-5)
+    # Shading normals are world-space unit normals of the (flat) faces.
+    ng = np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0])
+    ng /= np.linalg.norm(ng, axis=1, keepdims=True)
+    for corner in range(3):
+        np.testing.assert_allclose(np.einsum("ij,ij->i", s.normals[:, corner], ng), 1.0, atol=1e-5)
+
+
+def test_modifiers_are_applied(addon):
+    fresh()
+    arr = add_mesh("array", *QUAD)
+    mod = arr.modifiers.new("Array", "ARRAY")
+    mod.count = 3
+    mod.relative_offset_displace = (1.0, 0.0, 0.0)
+    sub = add_mesh("subsurf", *QUAD, location=(0, 5, 0))
+    mod = sub.modifiers.new("Subsurf", "SUBSURF")
+    mod.levels = mod.render_levels = 2
+    s = export(addon)
+    counts = tri_counts(s)
+    assert counts == {"array": 2 * 3, "subsurf": 2 * 16}
+    p = tri_points(s, "array")
+    np.testing.assert_allclose(p.reshape(-1, 3).min(axis=0), [0, 0, 0], atol=1e-6)
+    np.testing.assert_allclose(p.reshape(-1, 3).max(axis=0), [3, 1, 0], atol=1e-6)
+    np.testing.assert_allclose(area(p).sum(), 3.0, rtol=1e-5)
+
+
+def _count_reads(addon, monkeypatch):
+    """Wrap the exporter's mesh reader: the list collects the pointer of each mesh read."""
+    export_mod = addon.restir_addon.export
+    reads = []
+    real = export_mod.read_mesh
+
+    def counting(me):
+        reads.append(me.as_pointer())
+        return real(me)
+
+    monkeypatch.setattr(export_mod, "read_mesh", counting)
+    return reads
+
+
+def test_collection_instances_share_geometry(addon, monkeypatch):
+    import bpy
+    fresh()
+    src = bpy.data.collections.new("Source")          # not linked to the scene: only instanced
+    add_mesh("piece", *TRI, collection=src)
+    placements = [((5, 0, 0), (0, 0, 0), (1, 1, 1)), ((0, 5, 0), (0, 0, 0.5), (2, 2, 2)),
+                  ((0, 0, 5), (0.7, 0, 0), (1, 3, 1))]
+    for i, (loc, rot, scl) in enumerate(placements):
+        empty = bpy.data.objects.new(f"inst{i}", None)
+        empty.instance_type = "COLLECTION"
+        empty.instance_collection = src
+        empty.location, empty.rotation_euler, empty.scale = loc, rot, scl
+        bpy.context.scene.collection.objects.link(empty)
+    reads = _count_reads(addon, monkeypatch)
+    s = export(addon)
+
+    assert s.triangle_count == len(placements)
+    assert len(reads) == 1, "instances must share one geometry read"
+    got = sorted(map(tuple, np.round(tri_points(s).reshape(-1, 3, 3)[:, 0], 5)))
+    want = sorted(tuple(np.round(apply(trs(*pl), TRI[0][:1])[0], 5)) for pl in placements)
+    np.testing.assert_allclose(got, want, atol=1e-4)
+    areas = np.sort(area(tri_points(s)))
+    base = area(TRI[0][None])[0]
+    np.testing.assert_allclose(areas, np.sort([base, 4 * base, 3 * base]), rtol=1e-5)
+
+
+def test_dupli_verts_instances(addon, monkeypatch):
+    fresh()
+    spots = np.array([[0, 0, 0], [3, 0, 0], [0, 4, 0], [1, 1, 2]], float)
+    parent = add_mesh("points", spots, [])          # vertices only: no triangles of its own
+    child = add_mesh("piece", *TRI)
+    child.parent = parent
+    parent.instance_type = "VERTS"
+    reads = _count_reads(addon, monkeypatch)
+    s = export_for_render(addon, monkeypatch)
+
+    assert s.triangle_count == len(spots)   # one copy per vertex, the child itself not rendered
+    assert len(set(reads)) == len(reads), "the same mesh was read twice"
+    corners = tri_points(s)[:, 0]
+    np.testing.assert_allclose(sorted(map(tuple, corners)), sorted(map(tuple, spots)), atol=1e-5)
+
+
+def test_geometry_nodes_instances(addon, monkeypatch):
+    import bpy
+    fresh()
+    spots = np.array([[0, 0, 0], [2, 0, 0], [0, 2, 0], [0, 0, 2], [2, 2, 2]], float)
+    src = add_mesh("piece", *QUAD, location=(0, 0, -10))
+    pts = add_mesh("points", spots, [])
+    tree = bpy.data.node_groups.new("Scatter", "GeometryNodeTree")
+    tree.interface.new_socket("Geometry", in_out="INPUT", socket_type="NodeSocketGeometry")
+    tree.interface.new_socket("Geometry", in_out="OUTPUT", socket_type="NodeSocketGeometry")
+    gin, gout = tree.nodes.new("NodeGroupInput"), tree.nodes.new("NodeGroupOutput")
+    inst = tree.nodes.new("GeometryNodeInstanceOnPoints")
+    info = tree.nodes.new("GeometryNodeObjectInfo")
+    info.inputs["Object"].default_value = src
+    tree.links.new(gin.outputs[0], inst.inputs["Points"])
+    tree.links.new(info.outputs["Geometry"], inst.inputs["Instance"])
+    tree.links.new(inst.outputs[0], gout.inputs[0])
+    pts.modifiers.new("Scatter", "NODES").node_group = tree
+    src.data.materials.append(material("red", Base_Color=(1, 0, 0, 1)))
+    reads = _count_reads(addon, monkeypatch)
+    s = export(addon)
+
+    assert s.triangle_count == 2 + 2 * len(spots)     # the source itself plus the copies
+    assert len(set(reads)) == len(reads), "the instances must share one geometry read"
+    # Instances keep the material of the instanced geometry.
+    assert (s.material_ids == row(s, "red")["id"]).all()
+    copies = tri_points(s)[tri_points(s)[:, :, 2].max(axis=1) > -5]
+    assert len(copies) == 2 * len(spots)
+    mins = {tuple(np.round(c, 5)) for c in copies.reshape(-1, 2, 3, 3).min(axis=(1, 2))}
+    assert mins == {tuple(p) for p in spots}
+
+
+def test_curves_and_text_become_triangles(addon):
+    import bpy
+    scene = fresh()
+    text = bpy.data.curves.new("text", "FONT")
+    text.body = "Hi"
+    text.materials.append(material("ink", "ShaderNodeBsdfDiffuse", Color=(0.1, 0.2, 0.9, 1)))
+    scene.collection.objects.link(bpy.data.objects.new("text", text))
+    curve = bpy.data.curves.new("tube", "CURVE")
+    curve.dimensions = "3D"
+    curve.bevel_depth = 0.1
+    spline = curve.splines.new("POLY")
+    spline.points.add(1)
+    spline.points[0].co = (0, 0, 0, 1)
+    spline.points[1].co = (2, 0, 0, 1)
+    scene.collection.objects.link(bpy.data.objects.new("tube", curve))
+    meta = bpy.data.metaballs.new("blob")
+    meta.elements.new().radius = 1.0
+    scene.collection.objects.link(bpy.data.objects.new("blob", meta))
+    s = export(addon)
+
+    counts = tri_counts(s)
+    assert counts["text"] > 10 and counts["tube"] > 8 and counts["blob"] > 8
+    # Each surface exactly once: no triangle exported twice on top of itself.
+    keyed = {tuple(sorted(map(tuple, t))) for t in np.round(tri_points(s), 5).tolist()}
+    assert len(keyed) == s.triangle_count, "triangles exported twice"
+    tube = tri_points(s, "tube").reshape(-1, 3)
+    np.testing.assert_allclose(tube.min(axis=0), [0, -0.1, -0.1], atol=1e-4)
+    np.testing.assert_allclose(tube.max(axis=0), [2, 0.1, 0.1], atol=1e-4)
+    # Side of a tube of radius 0.1 and length 2 (a polygon a little inside the circle).
+    lateral = 2 * math.pi * 0.1 * 2
+    assert 0.95 * lateral < area(tri_points(s, "tube")).sum() <= lateral
+    ink = s.material_ids[s.object_ids == s.object_names.index("text")]
+    assert (ink == row(s, "ink")["id"]).all()
+    txt = tri_points(s, "text").reshape(-1, 3)
+    np.testing.assert_allclose(txt[:, 2], 0.0, atol=1e-6)     # flat text in its z = 0 plane
+    assert 0.5 < np.ptp(txt[:, 0]) < 3 and 0.3 < np.ptp(txt[:, 1]) < 1.5
+
+
+def test_render_visibility_and_render_levels(addon, monkeypatch):
+    fresh()
+    add_mesh("shown", *QUAD)
+    add_mesh("hidden", *QUAD, location=(3, 0, 0)).hide_render = True
+    add_mesh("viewport_hidden", *QUAD, location=(-3, 0, 0)).hide_viewport = True
+    sub = add_mesh("subsurf", *QUAD, location=(0, 3, 0))
+    mod = sub.modifiers.new("Subsurf", "SUBSURF")
+    mod.levels, mod.render_levels = 0, 1
+    s = export_for_render(addon, monkeypatch)
+
+    counts = tri_counts(s)
+    assert "hidden" not in counts
+    assert counts == {"shown": 2, "viewport_hidden": 2, "subsurf": 8}
+
+
+# ---------------------------------------------------------------- materials
+
+def test_material_slots_map_per_triangle(addon):
+    fresh()
+    verts, faces = grid(3, 1)
+    ob = add_mesh("obj", verts, faces)
+    red = material("red", "ShaderNodeBsdfDiffuse", Color=(1, 0, 0, 1))
+    blue = material("blue", "ShaderNodeBsdfDiffuse", Color=(0, 0, 1, 1))
+    green = material("green", "ShaderNodeBsdfDiffuse", Color=(0, 1, 0, 1))
+    ob.data.materials.append(red)
+    ob.data.materials.append(blue)
+    ob.data.materials.append(blue)
+    ob.material_slots[2].link = "OBJECT"           # the object's own material wins
+    ob.material_slots[2].material = green
+    ob.data.polygons.foreach_set("material_index", [1, 0, 2])
+    ob.data.update()
+    s = export(addon)
+
+    assert s.triangle_count == 6
+    centre_x = tri_points(s).mean(axis=1)[:, 0]
+    colour = s.materials.base_color[s.material_ids]
+    for x, want in ((-1 / 3, (0, 0, 1)), (0, (1, 0, 0)), (1 / 3, (0, 1, 0))):
+        sel = np.abs(centre_x - x) < 1 / 6
+        assert sel.sum() == 2
+        np.testing.assert_allclose(colour[sel], [want, want])
+    assert s.warnings == []
+
+
+def test_shader_nodes_read(addon):
+    fresh()
+    mats = [
+        material("principled", Base_Color=(0.2, 0.3, 0.4, 1), Metallic=0.7, Roughness=0.25,
+                 IOR=1.45, Specular_IOR_Level=0.6, Emission_Color=(1, 0.5, 0.25, 1),
+                 Emission_Strength=2.0),
+        material("diffuse", "ShaderNodeBsdfDiffuse", Color=(0.1, 0.6, 0.2, 1)),
+        material("glossy", "ShaderNodeBsdfGlossy", Color=(0.9, 0.8, 0.7, 1), Roughness=0.15),
+        material("emission", "ShaderNodeEmission", Color=(1, 0.5, 0.25, 1), Strength=4.0),
+    ]
+    for i, mat in enumerate(mats):
+        add_mesh(mat.name, *QUAD, location=(2 * i, 0, 0)).data.materials.append(mat)
+    s = export(addon)
+    assert s.warnings == []
+
+    p = row(s, "principled")
+    np.testing.assert_allclose(p["base_color"], (0.2, 0.3, 0.4), rtol=1e-6)
+    np.testing.assert_allclose([p["metallic"], p["roughness"], p["ior"], p["specular"]],
+                               [0.7, 0.25, 1.45, 0.6], rtol=1e-6)
+    np.testing.assert_allclose(p["emission"], (2, 1, 0.5), rtol=1e-6)
+
+    d = row(s, "diffuse")
+    np.testing.assert_allclose(d["base_color"], (0.1, 0.6, 0.2), rtol=1e-6)
+    assert d["metallic"] == 0 and d["specular"] == 0      # pure Lambert
+    np.testing.assert_allclose(d["emission"], 0)
+
+    g = row(s, "glossy")
+    np.testing.assert_allclose(g["base_color"], (0.9, 0.8, 0.7), rtol=1e-6)
+    assert g["metallic"] == 1
+    np.testing.assert_allclose(g["roughness"], 0.15, rtol=1e-6)
+
+    e = row(s, "emission")
+    np.testing.assert_allclose(e["emission"], (4, 2, 1), rtol=1e-6)
+    np.testing.assert_allclose(e["base_color"], 0)
+    assert e["specular"] == 0 and e["metallic"] == 0
+
+    # Triangles point at their own object's material.
+    for name in ("principled", "diffuse", "glossy", "emission"):
+        ids = s.material_ids[s.object_ids == s.object_names.index(name)]
+        assert (ids == row(s, name)["id"]).all()
+
+
+@pytest.mark.parametrize("node_type, label", [("ShaderNodeBsdfToon", "Toon BSDF"),
+                                              ("ShaderNodeMixShader", "Mix Shader")])
+def test_unsupported_node_warns_once(addon, node_type, label):
+    fresh()
+    mat = material("odd", node_type)
+    for i in range(3):                 # three users, two slots on one of them
+        ob = add_mesh(f"obj{i}", *QUAD, location=(2 * i, 0, 0))
+        ob.data.materials.append(mat)
+    ob.data.materials.append(mat)
+    s = export(addon)
+
+    naming = [w for w in s.warnings if label in w]
+    assert len(naming) == 1, s.warnings
+    assert "odd" in naming[0]
+    assert len(s.warnings) == 1, s.warnings
+    r = row(s, "odd")
+    np.testing.assert_allclose(r["base_color"], (0.8, 0.8, 0.8))
+    np.testing.assert_allclose([r["metallic"], r["roughness"]], [0.0, 0.5])
+    np.testing.assert_allclose(r["emission"], 0)
+
+
+def test_textured_input_warns(addon):
+    fresh()
+    mat = material("textured", Base_Color=(0.3, 0.2, 0.1, 1))
+    tree = mat.node_tree
+    noise = tree.nodes.new("ShaderNodeTexNoise")
+    tree.links.new(noise.outputs["Color"], tree.nodes["Principled BSDF"].inputs["Base Color"])
+    add_mesh("obj", *QUAD).data.materials.append(mat)
+    s = export(addon)
+
+    assert len(s.warnings) == 1, s.warnings
+    assert "Base Color" in s.warnings[0] and "textured" in s.warnings[0]
+    np.testing.assert_allclose(row(s, "textured")["base_color"], (0.3, 0.2, 0.1), rtol=1e-6)
+
+
+# ---------------------------------------------------------------- lights
+
+def _local_axes(rotation):
+    return trs((0, 0, 0), rotation, (1, 1, 1))[:3, :3]
+
+
+def test_light_types_follow_cycles_conventions(addon):
+    cs = addon.core.scene
+    fresh()
+    rot = (0.4, -0.3, 0.2)
+    axes = _local_axes(rot)
+    add_light("point", "POINT", location=(1, 2, 3), scale=(3, 3, 3), energy=100.0,
+              color=(1, 0.5, 0.25), shadow_soft_size=0.2, use_soft_falloff=False)
+    add_light("spot", "SPOT", location=(0, 0, 4), rotation=rot, energy=50.0,
+              spot_size=math.radians(60), spot_blend=0.3, shadow_soft_size=0.1)
+    add_light("sun", "SUN", rotation=rot, energy=3.0, angle=math.radians(5))
+    sizes = {"SQUARE": (0.5 * 2, 0.5 * 3), "RECTANGLE": (0.5 * 2, 2.0 * 3),
+             "DISK": (0.5 * 2, 0.5 * 3), "ELLIPSE": (0.5 * 2, 2.0 * 3)}
+    for shape in sizes:
+        add_light(f"area_{shape}", "AREA", location=(0, 0, 2), rotation=rot, scale=(2, 3, 1),
+                  energy=80.0, shape=shape, size=0.5, size_y=2.0)
+    lit = add_light("seen", "POINT", shadow_soft_size=0.3)
+    lit.visible_camera = True
+    s = export(addon)
+    assert s.warnings == []
+    assert len(s.lights) == 8
+
+    p = light(s, "point")
+    assert p["kind"] == cs.LIGHT_POINT
+    np.testing.assert_allclose(p["position"], (1, 2, 3))
+    np.testing.assert_allclose(p["power"], (100, 50, 25))
+    np.testing.assert_allclose(p["radius"], 0.2, rtol=1e-6)       # object scale does not count
+    assert not p["soft_falloff"] and not p["camera_visible"]
+
+    sp = light(s, "spot")
+    assert sp["kind"] == cs.LIGHT_SPOT
+    np.testing.assert_allclose(sp["direction"], -axes[:, 2], atol=1e-6)
+    np.testing.assert_allclose([sp["spot_size"], sp["spot_blend"], sp["radius"]],
+                               [math.radians(60), 0.3, 0.1], rtol=1e-6)
+    np.testing.assert_allclose(sp["power"], (50, 50, 50))
+    assert sp["soft_falloff"]
+
+    su = light(s, "sun")
+    assert su["kind"] == cs.LIGHT_SUN
+    np.testing.assert_allclose(su["direction"], -axes[:, 2], atol=1e-6)
+    np.testing.assert_allclose(su["angle"], math.radians(5), rtol=1e-6)
+    np.testing.assert_allclose(su["power"], (3, 3, 3))
+
+    shapes = {"SQUARE": cs.SHAPE_SQUARE, "RECTANGLE": cs.SHAPE_RECTANGLE,
+              "DISK": cs.SHAPE_DISK, "ELLIPSE": cs.SHAPE_ELLIPSE}
+    for shape, (u, v) in sizes.items():
+        a = light(s, f"area_{shape}")
+        assert a["kind"] == cs.LIGHT_AREA and a["shape"] == shapes[shape]
+        np.testing.assert_allclose([a["size_u"], a["size_v"]], [u, v], rtol=1e-6)
+        np.testing.assert_allclose(a["direction"], -axes[:, 2], atol=1e-6)
+        np.testing.assert_allclose(a["axis_u"], axes[:, 0], atol=1e-6)
+        np.testing.assert_allclose(a["axis_v"], axes[:, 1], atol=1e-6)
+        np.testing.assert_allclose(a["power"], (80, 80, 80))
+        assert not a["camera_visible"]
+
+    assert light(s, "seen")["camera_visible"]
+
+
+def test_light_normalize_off_and_exposure(addon):
+    fresh()
+    add_light("point0", "POINT", energy=10.0, normalize=False)
+    add_light("point_r", "POINT", energy=10.0, normalize=False, shadow_soft_size=0.2)
+    add_light("spot_r", "SPOT", energy=10.0, normalize=False, shadow_soft_size=0.2)
+    add_light("sun", "SUN", energy=2.0, normalize=False, angle=math.radians(10))
+    add_light("sun0", "SUN", energy=2.0, normalize=False, angle=0.0)
+    add_light("rect", "AREA", energy=10.0, normalize=False, shape="RECTANGLE", size=2.0,
+              size_y=0.5, scale=(1, 2, 1))
+    add_light("disk", "AREA", energy=10.0, normalize=False, shape="DISK", size=2.0)
+    add_light("exposed", "POINT", energy=10.0, exposure=1.5)
+    s = export(addon)
+
+    # With normalize off Cycles keeps the radiance (or intensity) of a unit-area
+    # light: the exported power carries the area (docs/cycles-conventions.md).
+    expected = {
+        "point0": 10 * 4.0,                                   # I = P / pi
+        "point_r": 10 * 4 * math.pi * 0.2 ** 2,               # L = P / pi
+        "spot_r": 10 * 4 * math.pi * 0.2 ** 2,
+        "sun": 2 * math.pi * math.sin(math.radians(5)) ** 2,  # L = S
+        "sun0": 2.0,
+        "rect": 10 * 2.0 * 1.0,                               # L = P / pi, A = 2 x 1
+        "disk": 10 * math.pi / 4 * 4.0,
+        "exposed": 10 * 2 ** 1.5,                             # P * 2^exposure
+    }
+    for name, power in expected.items():
+        np.testing.assert_allclose(light(s, name)["power"], (power,) * 3, rtol=1e-5,
+                                   err_msg=name)
+
+
+def test_light_temperature_and_spread_warn(addon):
+    import bpy
+    scene = fresh()
+    add_light("narrow", "AREA", spread=math.radians(60))
+    # A light placed three times through a collection: three lights, one warning.
+    src = bpy.data.collections.new("Lamps")
+    warm = add_light("warm", "POINT", location=(0, 0, 1), use_temperature=True, temperature=3000.0)
+    scene.collection.objects.unlink(warm)
+    src.objects.link(warm)
+    for i in range(3):
+        empty = bpy.data.objects.new(f"lamp{i}", None)
+        empty.instance_type, empty.instance_collection = "COLLECTION", src
+        empty.location = (2 * i, 0, 0)
+        scene.collection.objects.link(empty)
+    s = export(addon)
+
+    assert len(s.lights) == 4
+    warm_rows = [i for i, n in enumerate(s.lights.names) if n == "warm"]
+    np.testing.assert_allclose(sorted(s.lights.position[warm_rows].tolist()),
+                               [[0, 0, 1], [2, 0, 1], [4, 0, 1]], atol=1e-6)
+    assert len([w for w in s.warnings if "warm" in w and "temperature" in w]) == 1, s.warnings
+    assert len([w for w in s.warnings if "narrow" in w and "spread" in w]) == 1, s.warnings
+    assert len(s.warnings) == 2, s.warnings
+
+
+# ---------------------------------------------------------------- world
+
+def test_world_colour_times_strength(addon):
+    import bpy
+    scene = fresh()
+    assert scene.world is None
+    np.testing.assert_allclose(export(addon).world_color, 0)
+
+    world = bpy.data.worlds.new("World")
+    scene.world = world
+    bg = world.node_tree.nodes["Background"]
+    bg.inputs["Color"].default_value = (0.2, 0.4, 0.6, 1)
+    bg.inputs["Strength"].default_value = 2.5
+    s = export(addon)
+    np.testing.assert_allclose(s.world_color, (0.5, 1.0, 1.5), rtol=1e-6)
+    assert s.warnings == []
+
+    sky = world.node_tree.nodes.new("ShaderNodeTexSky")
+    world.node_tree.links.new(sky.outputs[0], bg.inputs["Color"])
+    s = export(addon)
+    np.testing.assert_allclose(s.world_color, (0.5, 1.0, 1.5), rtol=1e-6)
+    assert len(s.warnings) == 1 and "World" in s.warnings[0], s.warnings
+
+
+# ---------------------------------------------------------------- camera
+
+def _camera(name, **props):
+    import bpy
+    data = bpy.data.cameras.new(name)
+    for key, value in props.items():
+        setattr(data, key, value)
+    ob = bpy.data.objects.new(name, data)
+    bpy.context.scene.collection.objects.link(ob)
+    bpy.context.scene.camera = ob
+    return ob
+
+
+CAMERAS = {
+    "persp_vertical": dict(type="PERSP", lens=35.0, sensor_width=32.0, sensor_height=18.0,
+                           sensor_fit="VERTICAL", shift_x=0.1, shift_y=-0.05,
+                           clip_start=0.5, clip_end=50.0),
+    "persp_auto_portrait": dict(type="PERSP", lens=50.0, sensor_fit="AUTO", shift_x=-0.2),
+    "ortho_horizontal": dict(type="ORTHO", ortho_scale=4.0, sensor_fit="HORIZONTAL",
+                             shift_y=0.15, clip_start=0.01, clip_end=20.0),
+}
+
+
+@pytest.mark.parametrize("case", list(CAMERAS))
+def test_camera_matches_blender_projection(addon, case, rng):
+    import bpy
+    from bpy_extras.object_utils import world_to_camera_view
+    from mathutils import Vector
+    project = addon.core.camera.project
+    scene = fresh()
+    props = CAMERAS[case]
+    width, height = (24, 40) if "portrait" in case else (40, 24)
+    scene.render.resolution_x, scene.render.resolution_y = width, height
+    cam = _camera(case, **props)
+    cam.location, cam.rotation_euler = (1.0, -6.0, 2.0), (math.radians(80), 0.0, math.radians(10))
+    bpy.context.view_layer.update()
+    s = export(addon, width, height)
+    c = s.camera
+
+    assert c.projection == props["type"]
+    np.testing.assert_allclose(c.to_world, np.array(cam.matrix_world), atol=1e-6)
+    for key, value in props.items():
+        if key != "type":
+            got = getattr(c, key)
+            assert got == value if isinstance(value, str) else math.isclose(got, value, rel_tol=1e-6), key
+
+    # The exported camera projects world points where Blender's camera frame puts them.
+    points = rng.uniform(-2, 2, (20, 3)) + [1.0, 0.0, 2.0]
+    film, _ = project(c, width, height, points)
+    for p, f in zip(points, film):
+        ndc = world_to_camera_view(scene, cam, Vector(p))
+        np.testing.assert_allclose(f, (ndc.x * width, ndc.y * height), atol=1e-3)
+
+
+def test_resolution_percentage(addon):
+    import bpy
+    scene = fresh()
+    scene.render.resolution_x, scene.render.resolution_y = 200, 120
+    scene.render.resolution_percentage = 25
+    _camera("cam")
+    s, has_camera = addon.restir_addon.export.export_scene(bpy.context.evaluated_depsgraph_get())
+    assert has_camera
+    assert (s.width, s.height) == (50, 30)
+
+
+def test_no_camera(addon):
+    import bpy
+    fresh()
+    add_mesh("obj", *QUAD)
+    s, has_camera = addon.restir_addon.export.export_scene(bpy.context.evaluated_depsgraph_get(), 8, 8)
+    assert not has_camera
+    assert s.triangle_count == 2

@@ -1,0 +1,449 @@
+"""The engine through Blender's own render operator: passes written to EXR,
+bad input that must still give a valid image and a clear report, cancel, and
+animation.
+
+Reports are captured by wrapping the engine handed to the final render with a
+proxy that records every ``report`` call (RenderEngine methods are resolved by
+Blender before Python attributes, so patching the class would not see them);
+the same proxy stands in for ``test_break`` in the cancel test.
+
+Blender itself refuses to start a render without a camera, so the engine's own
+no-camera guard is driven directly with a stand-in engine.
+"""
+
+import glob
+import os
+import time
+
+import numpy as np
+import pytest
+
+from core.film import read_exr
+
+
+# ---------------------------------------------------------------- helpers
+
+MODES = ["PATH", "RESTIR_BIASED", "RESTIR_UNBIASED"]
+
+
+def fresh(width=32, height=32, samples=4, mode="PATH"):
+    import bpy
+    bpy.ops.wm.read_factory_settings(use_empty=True)
+    scene = bpy.context.scene
+    scene.render.engine = "RESTIR_GI"
+    scene.restir_gi.mode = mode
+    scene.render.resolution_x, scene.render.resolution_y = width, height
+    scene.render.resolution_percentage = 100
+    scene.restir_gi.samples = samples
+    scene.restir_gi.max_bounces = 2
+    scene.restir_gi.seed = 0
+    return scene
+
+
+def add_mesh(name, verts, faces, location=(0, 0, 0), mat=None):
+    import bpy
+    me = bpy.data.meshes.new(name)
+    me.from_pydata(np.asarray(verts, np.float64).reshape(-1, 3).tolist(), [],
+                   [[int(i) for i in f] for f in faces])
+    me.update()
+    ob = bpy.data.objects.new(name, me)
+    ob.location = location
+    bpy.context.scene.collection.objects.link(ob)
+    if mat is not None:
+        me.materials.append(mat)
+    return ob
+
+
+def rect(x0, x1, y0, y1, z=0.0):
+    return np.array([[x0, y0, z], [x1, y0, z], [x1, y1, z], [x0, y1, z]], float), [[0, 1, 2, 3]]
+
+
+def diffuse(name, color):
+    import bpy
+    mat = bpy.data.materials.new(name)
+    tree = mat.node_tree
+    tree.nodes.remove(tree.nodes["Principled BSDF"])
+    node = tree.nodes.new("ShaderNodeBsdfDiffuse")
+    node.inputs["Color"].default_value = (*color, 1.0)
+    tree.links.new(node.outputs[0], tree.nodes["Material Output"].inputs["Surface"])
+    return mat
+
+
+def emission(name, strength):
+    import bpy
+    mat = bpy.data.materials.new(name)
+    tree = mat.node_tree
+    tree.nodes.remove(tree.nodes["Principled BSDF"])
+    node = tree.nodes.new("ShaderNodeEmission")
+    node.inputs["Strength"].default_value = strength
+    tree.links.new(node.outputs[0], tree.nodes["Material Output"].inputs["Surface"])
+    return mat
+
+
+def world(color, strength=1.0):
+    import bpy
+    w = bpy.data.worlds.new("World")
+    bg = w.node_tree.nodes["Background"]
+    bg.inputs["Color"].default_value = (*color, 1.0)
+    bg.inputs["Strength"].default_value = strength
+    bpy.context.scene.world = w
+    return w
+
+
+def camera(location=(0, 0, 5), rotation=(0, 0, 0), **props):
+    import bpy
+    data = bpy.data.cameras.new("Camera")
+    for key, value in props.items():
+        setattr(data, key, value)
+    ob = bpy.data.objects.new("Camera", data)
+    ob.location, ob.rotation_euler = location, rotation
+    bpy.context.scene.collection.objects.link(ob)
+    bpy.context.scene.camera = ob
+    return ob
+
+
+def render_exr(scene, path, multilayer=False):
+    """Render the current frame to `path` (32-bit EXR)."""
+    import bpy
+    settings = scene.render.image_settings
+    if multilayer:
+        settings.media_type = "MULTI_LAYER_IMAGE"
+    else:
+        settings.file_format = "OPEN_EXR"
+    settings.color_depth = "32"
+    scene.render.filepath = str(path)
+    bpy.ops.render.render(write_still=True)
+    assert os.path.isfile(path)
+
+
+def read_passes(path):
+    """{pass name: (H, W, C) float32, row 0 at the bottom} of a multilayer EXR."""
+    import OpenEXR
+    out = {}
+    with OpenEXR.File(str(path), separate_channels=True) as f:
+        for part in f.parts:
+            groups = {}
+            for name, ch in part.channels.items():
+                layer_pass, chan = name.rsplit(".", 1)
+                groups.setdefault(layer_pass.split(".", 1)[-1], {})[chan] = ch.pixels
+            for pass_name, chans in groups.items():
+                order = [c for c in "RGBAXYZ" if c in chans]
+                out[pass_name] = np.stack([chans[c] for c in order], axis=2)[::-1].astype(np.float32)
+    return out
+
+
+class EngineProxy:
+    """Stands in for the RenderEngine inside the final render: records reports,
+    optionally answers test_break and watches progress and the end of the
+    result; forwards everything else."""
+
+    def __init__(self, engine, log, test_break=None, on_progress=None, on_end=None):
+        self._engine, self._log = engine, log
+        self._test_break, self._on_progress, self._on_end = test_break, on_progress, on_end
+
+    def report(self, kind, message):
+        self._log.append((next(iter(kind)), message))
+        self._engine.report(kind, message)
+
+    def test_break(self):
+        return self._test_break() if self._test_break else self._engine.test_break()
+
+    def update_progress(self, value):
+        if self._on_progress:
+            self._on_progress(value)
+        self._engine.update_progress(value)
+
+    def end_result(self, result, *args, **kwargs):
+        if self._on_end:
+            self._on_end()
+        return self._engine.end_result(result, *args, **kwargs)
+
+    def __getattr__(self, name):
+        return getattr(self._engine, name)
+
+
+@pytest.fixture
+def reports(addon, monkeypatch):
+    """Every report the engine makes, as (type, message) in `.log`."""
+    final = addon.restir_addon.final
+    log = []
+    real = final.render
+    options = {}
+
+    def wrapped(engine, depsgraph):
+        return real(EngineProxy(engine, log, **options), depsgraph)
+
+    monkeypatch.setattr(final, "render", wrapped)
+    return Reports(log, options)
+
+
+class Reports:
+    """The recorded reports; `options` are handed to the next EngineProxy."""
+
+    def __init__(self, log, options):
+        self.log, self.options = log, options
+
+    def of(self, kind):
+        return [m for k, m in self.log if k == kind]
+
+
+def lit_plane_scene(width=32, height=32, samples=4, mode="PATH"):
+    """A diffuse plane filling the view of a camera looking straight down, under a grey world."""
+    scene = fresh(width, height, samples, mode)
+    camera()
+    world((0.5, 0.5, 0.5))
+    add_mesh("Plane", *rect(-5, 5, -5, 5), mat=diffuse("Orange", (0.6, 0.3, 0.1)))
+    return scene
+
+
+def assert_valid(img, shape):
+    assert img.shape[:2] == shape
+    assert np.isfinite(img).all()
+
+
+# ---------------------------------------------------------------- passes
+
+@pytest.mark.parametrize("mode", MODES)
+def test_passes_hold_depth_normal_albedo(addon, tmp_path, mode):
+    scene = fresh(32, 32, samples=8, mode=mode)
+    scene.restir_gi.warmup_frames = 4
+    camera(location=(0, 0, 5))
+    world((0.5, 0.5, 0.5))
+    # The plane covers the left half of the view; the right half sees the world.
+    add_mesh("Plane", *rect(-5, 0, -5, 5, z=1.0), mat=diffuse("Orange", (0.6, 0.3, 0.1)))
+    path = tmp_path / "passes.exr"
+    render_exr(scene, path, multilayer=True)
+    p = read_passes(path)
+
+    assert {"Combined", "Depth", "Normal", "Denoising Albedo"} <= set(p)
+    for name, img in p.items():
+        assert img.shape[:2] == (32, 32), name
+        assert np.isfinite(img).all(), name
+    left, right = np.s_[:, 2:13], np.s_[:, 19:30]     # away from the edge the filter blurs
+    # Depth: distance along the view axis, 5 - 1 = 4 m to the plane.
+    np.testing.assert_allclose(p["Depth"][left][..., 0], 4.0, rtol=1e-4)
+    assert (p["Depth"][right] > 1e9).all()
+    np.testing.assert_allclose(p["Normal"][left], np.broadcast_to([0, 0, 1], p["Normal"][left].shape),
+                               atol=1e-5)
+    np.testing.assert_allclose(p["Normal"][right], 0)
+    np.testing.assert_allclose(p["Denoising Albedo"][left],
+                               np.broadcast_to([0.6, 0.3, 0.1], p["Denoising Albedo"][left].shape),
+                               atol=1e-5)
+    np.testing.assert_allclose(p["Denoising Albedo"][right], 0)
+    # Combined: the world seen directly, and albedo x world on the unoccluded plane.
+    rgb = p["Combined"][..., :3]
+    np.testing.assert_allclose(rgb[right], 0.5, rtol=1e-5)
+    np.testing.assert_allclose(rgb[left].reshape(-1, 3).mean(axis=0), [0.3, 0.15, 0.05], rtol=0.03)
+    np.testing.assert_allclose(p["Combined"][..., 3], 1.0)
+    np.testing.assert_allclose(read_exr(path), rgb)
+
+
+# ---------------------------------------------------------------- bad input
+
+@pytest.mark.parametrize("mode", MODES)
+def test_empty_scene_renders_black(addon, reports, tmp_path, mode):
+    scene = fresh(mode=mode)
+    camera()                     # Blender refuses to render without one (next test)
+    render_exr(scene, tmp_path / "empty.exr")
+    img = read_exr(tmp_path / "empty.exr")
+    assert_valid(img, (32, 32))
+    assert (img == 0).all()
+    assert any("no geometry" in m for m in reports.of("WARNING")), reports.log
+    assert reports.of("ERROR") == []
+
+
+def test_no_camera_is_refused_with_a_clear_error(addon, tmp_path):
+    import bpy
+    scene = fresh()
+    add_mesh("Plane", *rect(-1, 1, -1, 1))
+    scene.render.filepath = str(tmp_path / "nocam.exr")
+    with pytest.raises(RuntimeError, match="no camera"):
+        bpy.ops.render.render(write_still=True)
+
+
+class _FakePass:
+    def __init__(self, store, name):
+        self.rect = self
+        self._store, self._name = store, name
+
+    def foreach_set(self, data):
+        self._store[self._name] = np.array(data, np.float32)
+
+
+class _FakeEngine:
+    """The handful of RenderEngine calls the final render makes, recorded."""
+
+    def __init__(self, names):
+        self.pixels, self.log, self.ended = {}, [], False
+        passes = {n: _FakePass(self.pixels, n) for n in names}
+        self.result = type("Result", (), {"layers": [type("Layer", (), {"passes": passes})()]})()
+
+    def begin_result(self, x, y, w, h, layer=None):
+        self.size = (w, h)
+        return self.result
+
+    def end_result(self, result):
+        self.ended = True
+
+    def report(self, kind, message):
+        self.log.append((next(iter(kind)), message))
+
+    def update_stats(self, *args):
+        pass
+
+    def update_progress(self, *args):
+        pass
+
+    def update_result(self, *args):
+        pass
+
+    def test_break(self):
+        return False
+
+
+def test_engine_without_camera_reports_error_and_black(addon):
+    """The engine's own guard (the render operator stops earlier, see above)."""
+    import bpy
+    fresh(16, 8)
+    world((1, 1, 1))
+    add_mesh("Plane", *rect(-1, 1, -1, 1))
+    engine = _FakeEngine(["Combined", "Depth", "Normal", "Denoising Albedo"])
+    addon.restir_addon.final.render(engine, bpy.context.evaluated_depsgraph_get())
+    assert engine.ended
+    errors = [m for k, m in engine.log if k == "ERROR"]
+    assert len(errors) == 1 and "camera" in errors[0]
+    combined = engine.pixels["Combined"].reshape(8, 16, 4)
+    assert np.isfinite(combined).all() and (combined[..., :3] == 0).all()
+
+
+@pytest.mark.parametrize("mode", MODES)
+def test_no_lights_black_world_renders_black(addon, reports, tmp_path, mode):
+    scene = fresh(mode=mode)
+    camera()
+    world((0, 0, 0))
+    add_mesh("Plane", *rect(-5, 5, -5, 5), mat=diffuse("White", (0.8, 0.8, 0.8)))
+    render_exr(scene, tmp_path / "dark.exr")
+    img = read_exr(tmp_path / "dark.exr")
+    assert_valid(img, (32, 32))
+    assert (img == 0).all()
+    assert any("no light source" in m for m in reports.of("WARNING")), reports.log
+    assert reports.of("ERROR") == []
+
+
+@pytest.mark.parametrize("source", ["light", "emitter", "world"])
+def test_any_light_source_silences_the_no_light_warning(addon, reports, tmp_path, source):
+    import bpy
+    scene = fresh(8, 8, samples=1)
+    camera()
+    world((0.2, 0.2, 0.2) if source == "world" else (0, 0, 0))
+    add_mesh("Plane", *rect(-5, 5, -5, 5), mat=diffuse("White", (0.8, 0.8, 0.8)))
+    if source == "light":
+        lamp = bpy.data.objects.new("Lamp", bpy.data.lights.new("Lamp", "POINT"))
+        lamp.location = (0, 0, 2)
+        scene.collection.objects.link(lamp)
+    elif source == "emitter":
+        add_mesh("Glow", *rect(-1, 1, -1, 1, z=2.0), mat=emission("Glow", 1.0))
+    render_exr(scene, tmp_path / "lit.exr")
+    assert read_exr(tmp_path / "lit.exr").mean() > 0
+    assert reports.of("WARNING") == [] and reports.of("ERROR") == []
+
+
+@pytest.mark.parametrize("mode", MODES)
+def test_nan_and_degenerate_triangles(addon, reports, tmp_path, mode):
+    scene = lit_plane_scene(mode=mode)
+    nan = float("nan")
+    verts = [[0, 0, 1], [1, 0, 1], [nan, 0.5, 1],         # a NaN corner
+             [0, 0, 2], [1, 1, 2], [2, 2, 2],             # collinear: zero area
+             [0, 1, 1.5], [0, 1, 1.5], [1, 1, 1.5]]       # repeated point: zero area
+    add_mesh("Broken", verts, [[0, 1, 2], [3, 4, 5], [6, 7, 8]])
+    render_exr(scene, tmp_path / "broken.exr")
+    img = read_exr(tmp_path / "broken.exr")
+    assert_valid(img, (32, 32))
+    # The rest of the scene still renders as it does without the broken mesh.
+    np.testing.assert_allclose(img.reshape(-1, 3).mean(axis=0), [0.3, 0.15, 0.05], rtol=0.05)
+    warnings = reports.of("WARNING")
+    assert any("Skipped 1 " in m and "non-finite" in m for m in warnings), warnings
+    assert any("Skipped 2 " in m and "degenerate" in m for m in warnings), warnings
+    assert reports.of("ERROR") == []
+
+
+def test_unsupported_node_reported(addon, reports, tmp_path):
+    import bpy
+    scene = lit_plane_scene()
+    mat = bpy.data.materials.new("Cartoon")
+    tree = mat.node_tree
+    tree.nodes.remove(tree.nodes["Principled BSDF"])
+    toon = tree.nodes.new("ShaderNodeBsdfToon")
+    tree.links.new(toon.outputs[0], tree.nodes["Material Output"].inputs["Surface"])
+    add_mesh("Toon", *rect(-1, 1, -1, 1, z=1.0), mat=mat)
+    render_exr(scene, tmp_path / "toon.exr")
+    img = read_exr(tmp_path / "toon.exr")
+    assert_valid(img, (32, 32))
+    assert img.mean() > 0.05
+    naming = [m for m in reports.of("WARNING") if "Toon BSDF" in m]
+    assert len(naming) == 1 and "Cartoon" in naming[0], reports.log
+
+
+# ---------------------------------------------------------------- cancel
+
+@pytest.mark.parametrize("mode", ["PATH", "RESTIR_BIASED"])
+def test_cancel_stops_early_with_partial_image(addon, reports, tmp_path, mode):
+    # 400 samples (path tracing) or 400 warm-up frames of 2 samples (ReSTIR GI)
+    scene = lit_plane_scene(64, 64, samples=400 if mode == "PATH" else 2, mode=mode)
+    scene.restir_gi.warmup_frames = 400
+    progress, asked, ended = [], [], []
+
+    def test_break():
+        if progress:                  # a sample (or ReSTIR warm-up frame) is done: cancel
+            asked.append(time.perf_counter())
+            return True
+        return False
+
+    reports.options.update(test_break=test_break, on_progress=progress.append,
+                           on_end=lambda: ended.append(time.perf_counter()))
+    render_exr(scene, tmp_path / "cancel.exr")
+    img = read_exr(tmp_path / "cancel.exr")
+
+    assert asked and ended
+    assert ended[0] - asked[0] < 1.0, f"took {ended[0] - asked[0]:.2f} s to stop"
+    assert len(progress) == 1, progress
+    assert_valid(img, (64, 64))
+    assert img.mean() > 0.05            # one sample of a lit plane, not black
+    info = [m for m in reports.of("INFO") if "cancel" in m.lower()]
+    assert len(info) == 1, reports.log
+    assert "1 of 400" in info[0]
+
+
+# ---------------------------------------------------------------- animation
+
+@pytest.mark.parametrize("mode", MODES)
+def test_animation_writes_one_file_per_frame(addon, reports, tmp_path, mode):
+    import bpy
+    scene = fresh(32, 16, samples=2, mode=mode)
+    scene.restir_gi.warmup_frames = 2
+    camera(location=(0, 0, 5), type="ORTHO", ortho_scale=4.0)
+    world((0, 0, 0))
+    glow = add_mesh("Glow", *rect(-0.25, 0.25, -0.25, 0.25), mat=emission("Glow", 2.0))
+    for frame, x in ((1, -1.2), (2, 0.0), (3, 1.2)):
+        glow.location = (x, 0, 0)
+        glow.keyframe_insert("location", frame=frame)
+    scene.frame_start, scene.frame_end = 1, 3
+    settings = scene.render.image_settings
+    settings.file_format = "OPEN_EXR"
+    settings.color_depth = "32"
+    scene.render.filepath = str(tmp_path / "frame_####")
+    bpy.ops.render.render(animation=True)
+
+    files = sorted(glob.glob(str(tmp_path / "frame_*.exr")))
+    assert [os.path.basename(f) for f in files] == ["frame_0001.exr", "frame_0002.exr",
+                                                     "frame_0003.exr"]
+    centres = []
+    for f in files:
+        img = read_exr(f)
+        assert_valid(img, (16, 32))
+        lum = img.sum(axis=2)
+        assert lum.sum() > 0
+        centres.append(float((lum.sum(axis=0) * np.arange(32)).sum() / lum.sum()))
+    # 4 m across 32 px: the emitter moves 1.2 m = 9.6 px per frame, left to right.
+    np.testing.assert_allclose(np.diff(centres), [9.6, 9.6], atol=1.0)
+    assert reports.of("ERROR") == []
