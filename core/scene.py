@@ -149,6 +149,10 @@ class Scene:
     height: int = 64
     filter_width: float = 1.5   # pixel filter width in pixels (Blackman-Harris, as Cycles)
     warnings: list = field(default_factory=list)
+    # Placed objects: a key stable across frames and the world matrix of each
+    # object id, so temporal reuse can follow moving objects.
+    object_keys: list = field(default_factory=list)
+    object_matrices: np.ndarray = field(default_factory=lambda: np.zeros((0, 4, 4), np.float32))
 
     @property
     def triangle_count(self):
@@ -188,10 +192,18 @@ def make_scene(vertices, triangles, material_ids=None, materials=None, lights=No
         cross = np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0])
         with np.errstate(invalid="ignore", over="ignore"):
             area2 = np.einsum("ij,ij->i", cross, cross)
+        n_bad = int((in_range & ~finite).sum())
+        n_degenerate = int((in_range & finite & ~((area2 > 0) & np.isfinite(area2))).sum())
         keep &= finite & (area2 > 0) & np.isfinite(area2)
-        bad = int(n_tri - keep.sum())
-        if bad:
-            warnings.append(f"Skipped {bad} degenerate or non-finite triangle(s)")
+        if n_bad:
+            warnings.append(f"Skipped {n_bad} triangle(s) with non-finite vertex coordinates")
+        if n_degenerate:
+            warnings.append(f"Skipped {n_degenerate} degenerate (zero-area) triangle(s)")
+        if int((~in_range).sum()):
+            warnings.append(f"Skipped {int((~in_range).sum())} triangle(s) with invalid vertex indices")
+    # Vertices no kept triangle uses may still be non-finite: they must not
+    # reach the scene bounds (and every ray offset derived from them).
+    v = np.where(np.isfinite(v), v, 0.0).astype(np.float32)
     mids = np.where((mids >= 0) & (mids < len(mats)), mids, 0).astype(np.int32)
 
     t, mids, oids = t[keep], mids[keep], oids[keep]

@@ -125,14 +125,18 @@ def export_for_render(addon, monkeypatch):
 def tri_counts(s):
     """{object name: triangle count} of an exported scene."""
     counts = np.bincount(s.object_ids, minlength=len(s.object_names))
-    return {name: int(counts[i]) for i, name in enumerate(s.object_names)}
+    out = {}
+    for i, name in enumerate(s.object_names):   # instances of one object share its name
+        out[name] = out.get(name, 0) + int(counts[i])
+    return out
 
 
 def tri_points(s, name=None):
     """(T, 3, 3) world-space corners of the triangles (of one object)."""
     p = s.vertices[s.triangles]
     if name is not None:
-        p = p[s.object_ids == s.object_names.index(name)]
+        ids = [i for i, n in enumerate(s.object_names) if n == name]
+        p = p[np.isin(s.object_ids, ids)]
     return p
 
 

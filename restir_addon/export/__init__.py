@@ -56,6 +56,15 @@ def _object_mesh(obj, cache):
     return cache[key]
 
 
+def _instance_key(inst, obj):
+    """Identity of a placed object that stays the same from frame to frame (for
+    motion between frames): its name, plus the instancer's persistent id."""
+    name = obj.original.name if obj.original is not None else obj.name
+    if inst.is_instance:
+        return (name, tuple(inst.persistent_id))
+    return (name, ())
+
+
 def export_scene(depsgraph, width=None, height=None):
     """core.Scene of the evaluated depsgraph; scene.warnings lists what was approximated.
 
@@ -69,7 +78,8 @@ def export_scene(depsgraph, width=None, height=None):
     cache = {}
     verts, tris, normals, uvs, mids, oids, light_rows = [], [], [], [], [], [], []
     offset = 0
-    object_index = {}
+    object_index = {}           # instance key -> object id
+    object_matrices = []
     for inst in depsgraph.object_instances:
         obj = inst.object
         if obj.type == "LIGHT":
@@ -91,8 +101,11 @@ def export_scene(depsgraph, width=None, height=None):
         normals.append(nrm)
         uvs.append(mesh.uvs)
         mids.append(slot_ids[slots])
-        name = obj.original.name if obj.original is not None else obj.name
-        oids.append(np.full(len(mesh.triangles), object_index.setdefault(name, len(object_index)), np.int32))
+        key = _instance_key(inst, obj)
+        if key not in object_index:
+            object_index[key] = len(object_index)
+            object_matrices.append(np.array(inst.matrix_world, np.float32))
+        oids.append(np.full(len(mesh.triangles), object_index[key], np.int32))
         offset += len(pos)
 
     def cat(parts, shape, dtype):
@@ -102,15 +115,6 @@ def export_scene(depsgraph, width=None, height=None):
     vertices, triangles = cat(verts, (0, 3), np.float32), cat(tris, (0, 3), np.int32)
     per_tri = [cat(mids, (0,), np.int32), cat(normals, (0, 3, 3), np.float32),
                cat(uvs, (0, 3, 2), np.float32), cat(oids, (0,), np.int32)]
-    bad_vertex = ~np.isfinite(vertices).all(axis=1)
-    if bad_vertex.any():
-        # Non-finite vertices would poison the scene bounds (and every ray offset
-        # derived from them) even when no kept triangle uses them: drop the
-        # triangles that use them and neutralise the vertices.
-        keep = ~bad_vertex[triangles].any(axis=1)
-        warn(f"Skipped {int((~keep).sum())} triangle(s) with non-finite vertex coordinates")
-        triangles, per_tri = triangles[keep], [a[keep] for a in per_tri]
-        vertices[bad_vertex] = 0.0
     scene = make_scene(
         vertices, triangles,
         material_ids=per_tri[0],
@@ -125,5 +129,8 @@ def export_scene(depsgraph, width=None, height=None):
         filter_width=float(bscene.render.filter_size),
     )
     scene.warnings = warn.items + scene.warnings
-    scene.object_names = list(object_index)
+    scene.object_keys = list(object_index)
+    scene.object_names = [key[0] for key in object_index]
+    scene.object_matrices = (np.stack(object_matrices) if object_matrices
+                             else np.zeros((0, 4, 4), np.float32))
     return scene, camera is not None
