@@ -114,17 +114,17 @@ def evaluate(params, wo, wi):
     """f(wo, wi) as (N, 3). The diffuse lobe needs only wi above the shading
     normal (as Cycles: bent smooth-shaded normals must not blacken surfaces);
     the specular lobe needs both directions above it."""
-    f = np.where((wi[:, 2] > 0)[:, None], params.diffuse * INV_PI, 0.0)
-    has_spec = (params.p_spec > 0) & (wo[:, 2] > 0) & (wi[:, 2] > 0)
-    if has_spec.any():
-        h = _half(wo, wi)
-        d = ggx_d(h, params.alpha)
-        g2 = 1.0 / (1.0 + ggx_lambda(wo, params.alpha) + ggx_lambda(wi, params.alpha))
-        fr = schlick(params.f0, np.einsum("ij,ij->i", wo, h))
-        den = 4.0 * np.maximum(wo[:, 2] * wi[:, 2], 1e-12)
-        spec = fr * (d * g2 / den)[:, None]
-        f = f + np.where(has_spec[:, None], spec, 0.0)
-    return f.astype(np.float32)
+    f = np.where((wi[:, 2] > 0)[:, None], params.diffuse * INV_PI, 0.0).astype(np.float32)
+    rows = np.nonzero((params.p_spec > 0) & (wo[:, 2] > 0) & (wi[:, 2] > 0))[0]
+    if len(rows):   # the GGX lobe, only where there is one
+        a, o, i = params.alpha[rows], wo[rows], wi[rows]
+        h = _half(o, i)
+        d = ggx_d(h, a)
+        g2 = 1.0 / (1.0 + ggx_lambda(o, a) + ggx_lambda(i, a))
+        fr = schlick(params.f0[rows], np.einsum("ij,ij->i", o, h))
+        den = 4.0 * np.maximum(o[:, 2] * i[:, 2], 1e-12)
+        f[rows] += fr * (d * g2 / den)[:, None]
+    return f
 
 
 def _p_spec(params, wo):
@@ -135,9 +135,11 @@ def _p_spec(params, wo):
 def pdf(params, wo, wi):
     p_spec = _p_spec(params, wo)
     p = (1.0 - p_spec) * cosine_hemisphere_pdf(wi[:, 2])
-    has_spec = (p_spec > 0) & (wi[:, 2] > 0)
-    if has_spec.any():
-        p = p + np.where(has_spec, p_spec * _spec_pdf(wo, _half(wo, wi), params.alpha), 0.0)
+    p = p.astype(np.float32)
+    rows = np.nonzero((p_spec > 0) & (wi[:, 2] > 0))[0]
+    if len(rows):
+        o = wo[rows]
+        p[rows] += p_spec[rows] * _spec_pdf(o, _half(o, wi[rows]), params.alpha[rows])
     return np.where(wi[:, 2] > 0, p, 0.0).astype(np.float32)
 
 

@@ -42,7 +42,8 @@ def surface_hits(scene, origins, directions, hits, mask=None):
     d = directions[idx]
     # The hit point from the barycentrics is more precise than o + t d far away.
     p = (b0 * p0 + b1 * p1 + b2 * p2).astype(np.float32)
-    ng = normalize(np.cross(p1 - p0, p2 - p0)).astype(np.float32)
+    fn = scene.face_normals
+    ng = fn[prim] if fn is not None else normalize(np.cross(p1 - p0, p2 - p0)).astype(np.float32)
     n = scene.normals[prim]
     ns = normalize(b0 * n[:, 0] + b1 * n[:, 1] + b2 * n[:, 2]).astype(np.float32)
     bad_ns = ~(dot(ns, ns) > 0.5)

@@ -125,10 +125,11 @@ def merge(dst, src, weight, M_src, u, index=None):
     dst.w_sum += w
     dst.M += np.asarray(M_src, np.float32)
     take = (w > 0) & (u * dst.w_sum < w)
-    if take.any():
-        rows = take if index is None else index[take]
+    rows = np.nonzero(take)[0]
+    if len(rows):
+        src_rows = rows if index is None else index[rows]
         for name in Reservoirs.SAMPLE_FIELDS:
-            getattr(dst, name)[take] = getattr(src, name)[rows]
+            getattr(dst, name)[rows] = getattr(src, name)[src_rows]
     return take
 
 

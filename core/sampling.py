@@ -16,7 +16,7 @@ INV_4PI = np.float32(0.25 / np.pi)
 
 def dot(a, b):
     """Row-wise dot product of (N, 3) arrays."""
-    return np.einsum("ij,ij->i", a, b)
+    return a[:, 0] * b[:, 0] + a[:, 1] * b[:, 1] + a[:, 2] * b[:, 2]
 
 
 def normalize(v):

@@ -153,6 +153,7 @@ class Scene:
     # object id, so temporal reuse can follow moving objects.
     object_keys: list = field(default_factory=list)
     object_matrices: np.ndarray = field(default_factory=lambda: np.zeros((0, 4, 4), np.float32))
+    face_normals: np.ndarray = None   # (T, 3) unit geometric normals (make_scene fills them)
 
     @property
     def triangle_count(self):
@@ -208,9 +209,9 @@ def make_scene(vertices, triangles, material_ids=None, materials=None, lights=No
 
     t, mids, oids = t[keep], mids[keep], oids[keep]
     p = v[t] if len(t) else np.zeros((0, 3, 3), np.float32)
+    ng = np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]) if len(t) else np.zeros((0, 3), np.float32)
+    ng = (ng / np.maximum(np.linalg.norm(ng, axis=1, keepdims=True), 1e-30)).astype(np.float32)
     if normals is None:
-        ng = np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0]) if len(t) else np.zeros((0, 3), np.float32)
-        ng /= np.maximum(np.linalg.norm(ng, axis=1, keepdims=True), 1e-30)
         ns = np.repeat(ng[:, None, :], 3, axis=1)
     else:
         ns = np.asarray(normals, np.float32).reshape(-1, 3, 3)[keep]
@@ -226,4 +227,5 @@ def make_scene(vertices, triangles, material_ids=None, materials=None, lights=No
         materials=mats, lights=lights if lights is not None else Lights.empty(),
         camera=camera if camera is not None else Camera(),
         world_color=np.asarray(world_color, np.float32).reshape(3),
-        width=int(width), height=int(height), filter_width=float(filter_width), warnings=warnings)
+        width=int(width), height=int(height), filter_width=float(filter_width), warnings=warnings,
+        face_normals=ng)
