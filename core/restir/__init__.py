@@ -13,7 +13,7 @@ import numpy as np
 
 from .. import samplers
 from ..camera import PixelFilter
-from ..reservoirs import Reservoirs, merge, finalize
+from ..reservoirs import finalize, merge
 from .gbuffer import trace_gbuffer
 from .initial import COSINE, initial_samples
 from .shading import shade_indirect
@@ -79,8 +79,8 @@ class ReSTIRGI:
 
     def render_frame(self, ctx, settings, frame):
         scene = ctx.scene
-        if self.history is not None and (self.history.width, self.history.height) != (scene.width, scene.height):
-            self.reset()
+        if self.history is not None and self.history.signature != _signature(scene):
+            self.reset()    # new resolution, or stored triangle/material ids mean nothing now
         biased = settings.mode != UNBIASED
         pixel_filter = PixelFilter(scene.filter_width)
         gb = trace_gbuffer(ctx, settings.seed, frame, pixel_filter)
@@ -135,10 +135,13 @@ class ReSTIRGI:
             ng=gb.ng, depth=gb.depth, valid=gb.valid, object_id=gb.object_id,
             object_keys=list(getattr(scene, "object_keys", []) or []),
             object_matrices=np.asarray(getattr(scene, "object_matrices", np.zeros((0, 4, 4)))),
-            temporal=temporal, spatial=spatial if settings.spatial else Reservoirs.empty(0).take(np.zeros(0, int)))
-        if not settings.spatial:
-            self.history.spatial = temporal
+            signature=_signature(scene), temporal=temporal, spatial=spatial)
         self.frames += 1
         found = float((prev_pix[gb.index] >= 0).mean()) if len(gb.index) else 0.0
         return FrameResult(color, direct_total, indirect, gb.depth, gb.n, gb.albedo,
                            spatial.M.copy(), spatial.W.copy(), found)
+
+
+def _signature(scene):
+    """What must not change for stored reservoirs to stay meaningful."""
+    return (scene.width, scene.height, scene.triangle_count, len(scene.materials))

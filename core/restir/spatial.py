@@ -17,7 +17,7 @@ from .. import samplers
 from ..integrators.base import shadow_rays
 from ..reservoirs import Reservoirs, finalize, merge
 from ..sampling import dot
-from .shift import shift_weight, target_at
+from .shift import J_MAX, J_MIN, jacobian, shift_weight, target_at
 from .temporal import DEPTH_REL_MAX, NORMAL_COS_MIN
 
 D_SPATIAL = 1000            # first sampler dimension of the spatial pass
@@ -45,17 +45,17 @@ def spatial_resample(ctx, gb, temporal, prev_spatial, prev_owner_p, seeds, k, ra
     p, nrm, ng = gb.p, gb.n, gb.ng
     valid = gb.valid
     res = Reservoirs.empty(n)
-    candidates = []             # (owner x1, owner ng, M) per reused reservoir, for Z
+    candidates = []             # (owner x1, ng, ns, M, shifted from) per reused reservoir, for Z
 
     own_w = target_at(temporal, p, ng, nrm) * temporal.W * temporal.M
     merge(res, temporal, own_w, np.where(valid, temporal.M, 0.0), samplers.uniform(seeds, D_SPATIAL))
-    candidates.append((p, ng, nrm, np.where(valid, temporal.M, 0.0)))
+    candidates.append((p, ng, nrm, np.where(valid, temporal.M, 0.0), None))
 
     if prev_spatial is not None:
         pw = shift_weight(prev_spatial, prev_owner_p, p, ng, nrm, biased)
         pm = np.where(valid, prev_spatial.M, 0.0)
         merge(res, prev_spatial, pw, pm, samplers.uniform(seeds, D_SPATIAL + 1))
-        candidates.append((p, ng, nrm, pm))
+        candidates.append((p, ng, nrm, pm, prev_owner_p))
 
     pix = np.arange(n)
     px, py = pix % w, pix // w
@@ -73,7 +73,7 @@ def spatial_resample(ctx, gb, temporal, prev_spatial, prev_owner_p, seeds, k, ra
         weight = np.where(ok, shift_weight(src, p[nb], p, ng, nrm, biased), 0.0)
         m = np.where(ok, src.M, 0.0)
         merge(res, temporal, weight, m, samplers.uniform(seeds, D_SPATIAL + 4 + 3 * i), index=nb)
-        candidates.append((p[nb], ng[nb], nrm[nb], m))
+        candidates.append((p[nb], ng[nb], nrm[nb], m, p[nb]))
 
     own_visible = None
     p_hat = target_at(res, p, ng, nrm)
@@ -81,17 +81,21 @@ def spatial_resample(ctx, gb, temporal, prev_spatial, prev_owner_p, seeds, k, ra
         finalize(res, p_hat)
     else:
         z = np.zeros(n, np.float32)
-        for x1_i, ng_i, ns_i, m_i in candidates:
+        for x1_i, ng_i, ns_i, m_i, x1_from in candidates:
             if x1_i is p:
                 if own_visible is None:
                     own_visible = visible(ctx, p, ng, nrm, res)
                 vis = own_visible
             else:
                 vis = visible(ctx, x1_i, ng_i, ns_i, res)
+            if x1_from is not None:
+                # A reservoir could have given the sample here only if its shift
+                # is accepted: shift_weight rejects J outside [J_MIN, J_MAX].
+                j = jacobian(x1_from, p, res.x2, res.ng2)
+                vis = vis & (j >= J_MIN) & (j <= J_MAX)
             z += np.where(vis, m_i, 0.0)
         finalize(res, p_hat, z)
-        # Only the Z candidates that could have produced the sample vouch for it:
-        # reusing this reservoir later with confidence M > Z would inflate its
-        # weight by M / Z every frame.
-        res.M[:] = z
+        # res.M stays the sum of the candidates' M: a confidence that does not
+        # depend on which sample was chosen. Setting it to Z (which does) makes
+        # next frame's MIS weights correlate with the sample, a bias.
     return res, own_visible

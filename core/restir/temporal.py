@@ -33,6 +33,7 @@ class FrameHistory:
     object_id: np.ndarray   # (P,) int32
     object_keys: list       # object key of each object id
     object_matrices: np.ndarray  # (O, 4, 4)
+    signature: tuple        # resolution and scene sizes the reservoirs refer to
     temporal: Reservoirs
     spatial: Reservoirs
 

@@ -6,7 +6,14 @@ neutral material with one warning naming the node. Inputs driven by other nodes
 (textures) fall back to the socket's own value, with a warning.
 """
 
+import bpy
 import numpy as np
+
+def uses_nodes(datablock):
+    """Node-based shading: always in Blender 5 (where use_nodes is deprecated),
+    the datablock's own switch before."""
+    return bpy.app.version >= (5, 0, 0) or datablock.use_nodes
+
 
 NEUTRAL = {"name": "neutral", "base_color": (0.8, 0.8, 0.8), "roughness": 0.5, "specular": 0.5}
 
@@ -42,7 +49,7 @@ def material_row(mat, warn):
     if mat is None:
         return dict(NEUTRAL)
     name = mat.name
-    tree = mat.node_tree if getattr(mat, "use_nodes", True) else None
+    tree = mat.node_tree if uses_nodes(mat) else None
     if tree is None:
         return {"name": name, "base_color": tuple(mat.diffuse_color)[:3], "metallic": float(mat.metallic),
                 "roughness": float(mat.roughness), "specular": 0.5}

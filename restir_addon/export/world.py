@@ -2,11 +2,13 @@
 
 import numpy as np
 
+from .materials import uses_nodes
+
 
 def export_world(world, warn):
     if world is None:
         return np.zeros(3, np.float32)
-    tree = world.node_tree if getattr(world, "use_nodes", True) else None
+    tree = world.node_tree if uses_nodes(world) else None
     if tree is None:
         return np.asarray(world.color, np.float32)[:3]
     output = next((n for n in tree.nodes if n.type == "OUTPUT_WORLD" and n.is_active_output), None)
