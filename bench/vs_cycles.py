@@ -31,35 +31,22 @@ def main():
     args = ap.parse_args()
     load_addon()
     import test_vs_cycles as cornell
-    from blender_util import block_means, render_image, set_resolution, setup_cycles, setup_restir
+    from blender_util import compare_with_cycles, set_resolution
     from restir_gi.core.film import write_png
 
     OUT.mkdir(parents=True, exist_ok=True)
     print(f"Cornell box {args.size}x{args.size}, {args.samples} spp, {args.bounces} bounces, "
           "two renders per engine")
-    print("| light | ours | Cycles | ratio | block chi | ours s | Cycles s |")
-    print("|---|---:|---:|---:|---:|---:|---:|")
+    print("| light | ours | Cycles | ratio | block chi | seconds (4 renders) |")
+    print("|---|---:|---:|---:|---:|---:|")
     for light in ("emitter", "point", "area"):
         scene = cornell._cornell(light)
         set_resolution(scene, args.size, args.size)
-        imgs, secs = {}, {}
-        for name, setup in (("ours", setup_restir), ("cycles", setup_cycles)):
-            imgs[name], secs[name] = [], 0.0
-            for seed in (1, 2):
-                setup(scene, args.samples, seed, args.bounces)
-                t0 = time.perf_counter()
-                imgs[name].append(render_image(scene))
-                secs[name] += time.perf_counter() - t0
-        o = [block_means(i, 8) for i in imgs["ours"]]
-        c = [block_means(i, 8) for i in imgs["cycles"]]
-        om, cm = (o[0] + o[1]) / 2, (c[0] + c[1]) / 2
-        var = ((o[0] - o[1]) / 2) ** 2 + ((c[0] - c[1]) / 2) ** 2
-        chi = float(((om - cm) ** 2).sum() / var.sum())
-        print(f"| {light} | {om.mean():.4f} | {cm.mean():.4f} | {om.mean() / cm.mean():.4f} | {chi:.2f} "
-              f"| {secs['ours'] / 2:.1f} | {secs['cycles'] / 2:.1f} |", flush=True)
-        ours = (imgs["ours"][0] + imgs["ours"][1]) / 2
-        cyc = (imgs["cycles"][0] + imgs["cycles"][1]) / 2
-        write_png(OUT / f"vs_cycles_{light}.png", np.concatenate([ours, cyc], axis=1))
+        t0 = time.perf_counter()
+        r = compare_with_cycles(scene, args.samples, args.bounces)
+        print(f"| {light} | {r['ours_mean']:.4f} | {r['cycles_mean']:.4f} | {r['ratio']:.4f} "
+              f"| {r['chi']:.2f} | {time.perf_counter() - t0:.0f} |", flush=True)
+        write_png(OUT / f"vs_cycles_{light}.png", np.concatenate([r["ours"], r["cycles"]], axis=1))
 
 
 if __name__ == "__main__":

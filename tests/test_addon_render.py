@@ -18,6 +18,7 @@ import time
 import numpy as np
 import pytest
 
+from blender_util import diffuse_material
 from core.film import read_exr
 
 
@@ -56,17 +57,6 @@ def add_mesh(name, verts, faces, location=(0, 0, 0), mat=None):
 
 def rect(x0, x1, y0, y1, z=0.0):
     return np.array([[x0, y0, z], [x1, y0, z], [x1, y1, z], [x0, y1, z]], float), [[0, 1, 2, 3]]
-
-
-def diffuse(name, color):
-    import bpy
-    mat = bpy.data.materials.new(name)
-    tree = mat.node_tree
-    tree.nodes.remove(tree.nodes["Principled BSDF"])
-    node = tree.nodes.new("ShaderNodeBsdfDiffuse")
-    node.inputs["Color"].default_value = (*color, 1.0)
-    tree.links.new(node.outputs[0], tree.nodes["Material Output"].inputs["Surface"])
-    return mat
 
 
 def emission(name, strength):
@@ -192,7 +182,7 @@ def lit_plane_scene(width=32, height=32, samples=4, mode="PATH"):
     scene = fresh(width, height, samples, mode)
     camera()
     world((0.5, 0.5, 0.5))
-    add_mesh("Plane", *rect(-5, 5, -5, 5), mat=diffuse("Orange", (0.6, 0.3, 0.1)))
+    add_mesh("Plane", *rect(-5, 5, -5, 5), mat=diffuse_material("Orange", (0.6, 0.3, 0.1)))
     return scene
 
 
@@ -210,7 +200,7 @@ def test_passes_hold_depth_normal_albedo(addon, tmp_path, mode):
     camera(location=(0, 0, 5))
     world((0.5, 0.5, 0.5))
     # The plane covers the left half of the view; the right half sees the world.
-    add_mesh("Plane", *rect(-5, 0, -5, 5, z=1.0), mat=diffuse("Orange", (0.6, 0.3, 0.1)))
+    add_mesh("Plane", *rect(-5, 0, -5, 5, z=1.0), mat=diffuse_material("Orange", (0.6, 0.3, 0.1)))
     path = tmp_path / "passes.exr"
     render_exr(scene, path, multilayer=True)
     p = read_passes(path)
@@ -321,7 +311,7 @@ def test_no_lights_black_world_renders_black(addon, reports, tmp_path, mode):
     scene = fresh(mode=mode)
     camera()
     world((0, 0, 0))
-    add_mesh("Plane", *rect(-5, 5, -5, 5), mat=diffuse("White", (0.8, 0.8, 0.8)))
+    add_mesh("Plane", *rect(-5, 5, -5, 5), mat=diffuse_material("White", (0.8, 0.8, 0.8)))
     render_exr(scene, tmp_path / "dark.exr")
     img = read_exr(tmp_path / "dark.exr")
     assert_valid(img, (32, 32))
@@ -336,7 +326,7 @@ def test_any_light_source_silences_the_no_light_warning(addon, reports, tmp_path
     scene = fresh(8, 8, samples=1)
     camera()
     world((0.2, 0.2, 0.2) if source == "world" else (0, 0, 0))
-    add_mesh("Plane", *rect(-5, 5, -5, 5), mat=diffuse("White", (0.8, 0.8, 0.8)))
+    add_mesh("Plane", *rect(-5, 5, -5, 5), mat=diffuse_material("White", (0.8, 0.8, 0.8)))
     if source == "light":
         lamp = bpy.data.objects.new("Lamp", bpy.data.lights.new("Lamp", "POINT"))
         lamp.location = (0, 0, 2)

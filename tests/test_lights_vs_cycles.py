@@ -12,7 +12,7 @@ import math
 import numpy as np
 import pytest
 
-from blender_util import block_means, render_image, set_resolution, setup_cycles, setup_restir
+from blender_util import compare_with_cycles, diffuse_material, set_resolution
 
 SIZE = 64
 BLOCK = 8
@@ -38,17 +38,6 @@ def _box(lo, hi):
     return v, faces
 
 
-def _diffuse(name, color):
-    import bpy
-    mat = bpy.data.materials.new(name)
-    tree = mat.node_tree
-    tree.nodes.remove(tree.nodes["Principled BSDF"])
-    node = tree.nodes.new("ShaderNodeBsdfDiffuse")
-    node.inputs["Color"].default_value = (*color, 1.0)
-    tree.links.new(node.outputs[0], tree.nodes["Material Output"].inputs["Surface"])
-    return mat
-
-
 def _light(name, kind, location, rotation=(0, 0, 0), **props):
     import bpy
     data = bpy.data.lights.new(name, kind)
@@ -72,9 +61,9 @@ def _scene(source):
     bg = world.node_tree.nodes["Background"]
     bg.inputs["Color"].default_value = (0.3, 0.5, 0.9, 1) if source == "world" else (0, 0, 0, 1)
 
-    white = _diffuse("White", (0.8, 0.8, 0.8))
+    white = diffuse_material("White", (0.8, 0.8, 0.8))
     _mesh("Floor", [[-3, -3, 0], [3, -3, 0], [3, 3, 0], [-3, 3, 0]], [[0, 1, 2, 3]], white)
-    _mesh("BoxA", *_box((-1.3, -0.2, 0), (-0.3, 0.8, 1)), _diffuse("Red", (0.8, 0.25, 0.2)))
+    _mesh("BoxA", *_box((-1.3, -0.2, 0), (-0.3, 0.8, 1)), diffuse_material("Red", (0.8, 0.25, 0.2)))
     _mesh("BoxB", *_box((0.5, -0.6, 0), (1.1, 0.0, 1.6)), white)
 
     if source == "spot":
@@ -105,30 +94,12 @@ def _scene(source):
     return scene
 
 
-def _two_renders(scene, setup):
-    out = []
-    for seed in (1, 2):
-        setup(scene, SAMPLES, seed, BOUNCES)
-        out.append(render_image(scene))
-    return out
-
-
 @pytest.mark.parametrize("source", ["spot", "sun", "emitter", "world"])
 def test_lights_match_cycles(addon, source):
-    scene = _scene(source)
-    ours = _two_renders(scene, setup_restir)
-    cycles = _two_renders(scene, setup_cycles)
-    for img in ours:
-        assert np.isfinite(img).all()
-
-    o = [block_means(i, BLOCK) for i in ours]
-    c = [block_means(i, BLOCK) for i in cycles]
-    o_mean, c_mean = (o[0] + o[1]) / 2, (c[0] + c[1]) / 2
-    var = ((o[0] - o[1]) / 2) ** 2 + ((c[0] - c[1]) / 2) ** 2
-    ratio = float(o_mean.mean() / c_mean.mean())
-    chi = float(((o_mean - c_mean) ** 2).sum() / var.sum())
-    print(f"{source}: mean ours {o_mean.mean():.4f} cycles {c_mean.mean():.4f} ratio {ratio:.4f} "
-          f"block chi {chi:.2f}")
-    assert c_mean.mean() > 0.02          # the scene is lit at all
-    assert abs(ratio - 1.0) < 0.02
-    assert chi < 2.5
+    r = compare_with_cycles(_scene(source), SAMPLES, BOUNCES, BLOCK)
+    assert np.isfinite(r["ours"]).all()
+    print(f"{source}: mean ours {r['ours_mean']:.4f} cycles {r['cycles_mean']:.4f} "
+          f"ratio {r['ratio']:.4f} block chi {r['chi']:.2f}")
+    assert r["cycles_mean"] > 0.02          # the scene is lit at all
+    assert abs(r["ratio"] - 1.0) < 0.02
+    assert r["chi"] < 2.5

@@ -12,8 +12,7 @@ missing light path, pushes it far above.
 import numpy as np
 import pytest
 
-from blender_util import (block_means, open_example, render_image, set_resolution,
-                          setup_cycles, setup_restir)
+from blender_util import compare_with_cycles, open_example, set_resolution
 
 SIZE = 64
 BLOCK = 8
@@ -44,30 +43,11 @@ def _cornell(light):
     return scene
 
 
-def _two_renders(scene, setup):
-    out = []
-    for seed in (1, 2):
-        setup(scene, SAMPLES, seed, BOUNCES)
-        out.append(render_image(scene))
-    return out
-
-
 @pytest.mark.parametrize("light", ["emitter", "point", "area"])
 def test_cornell_box_matches_cycles(addon, light):
-    scene = _cornell(light)
-    ours = _two_renders(scene, setup_restir)
-    cycles = _two_renders(scene, setup_cycles)
-    for img in ours:
-        assert np.isfinite(img).all()
-
-    o = [block_means(i, BLOCK) for i in ours]
-    c = [block_means(i, BLOCK) for i in cycles]
-    o_mean, c_mean = (o[0] + o[1]) / 2, (c[0] + c[1]) / 2
-    # Unbiased variance of each two-render mean, per block: ((a - b) / 2)^2.
-    var = ((o[0] - o[1]) / 2) ** 2 + ((c[0] - c[1]) / 2) ** 2
-    ratio = float(o_mean.mean() / c_mean.mean())
-    chi = float(((o_mean - c_mean) ** 2).sum() / var.sum())
-    print(f"{light}: mean ours {o_mean.mean():.4f} cycles {c_mean.mean():.4f} ratio {ratio:.4f} "
-          f"block chi {chi:.2f}")
-    assert abs(ratio - 1.0) < 0.02
-    assert chi < 2.5
+    r = compare_with_cycles(_cornell(light), SAMPLES, BOUNCES, BLOCK)
+    assert np.isfinite(r["ours"]).all()
+    print(f"{light}: mean ours {r['ours_mean']:.4f} cycles {r['cycles_mean']:.4f} "
+          f"ratio {r['ratio']:.4f} block chi {r['chi']:.2f}")
+    assert abs(r["ratio"] - 1.0) < 0.02
+    assert r["chi"] < 2.5

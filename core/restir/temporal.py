@@ -94,7 +94,6 @@ def reproject(scene, gb, history):
 def temporal_resample(initial, gb, history, prev_pix, u, M_cap, max_age, biased):
     """This frame's temporal reservoirs: the reprojected history merged with the
     new samples (finalised with 1/M)."""
-    n = len(gb.valid)
     ok = prev_pix >= 0
     if history is None or not ok.any():
         return initial.copy()
