@@ -115,7 +115,12 @@ class ReSTIRGI:
             if history is not None and (prev_pix >= 0).any():
                 q = np.maximum(prev_pix, 0)
                 prev_spatial = history.spatial.take(q)
-                prev_spatial.M = np.where(prev_pix >= 0, np.minimum(prev_spatial.M, settings.spatial_M_cap),
+                # With 1/Z weights a carried reservoir's weight is w_sum M / Z:
+                # a large M over a small Z compounds frame after frame, so the
+                # unbiased mode carries its spatial history with the temporal cap.
+                cap = settings.spatial_M_cap if biased else min(settings.spatial_M_cap,
+                                                                 settings.temporal_M_cap)
+                prev_spatial.M = np.where(prev_pix >= 0, np.minimum(prev_spatial.M, cap),
                                           0.0).astype(np.float32)
                 prev_spatial.age += 1
                 prev_spatial.M[prev_spatial.age > settings.max_age] = 0

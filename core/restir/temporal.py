@@ -110,4 +110,8 @@ def temporal_resample(initial, gb, history, prev_pix, u, M_cap, max_age, biased)
     res.M = np.where(ok, prev.M, 0.0).astype(np.float32)
     res.prim2 = np.where(w_prev > 0, res.prim2, -1)
     merge(res, initial, initial.w_sum, initial.M, u)
+    # A reservoir without a contributing sample holds nothing that can go
+    # stale: its age must not run out, or its count of dark candidates (M)
+    # would be dropped and the next bright sample over-weighted.
+    res.age[res.w_sum <= 0] = 0
     return finalize(res, target_at(res, p, ng, ns))

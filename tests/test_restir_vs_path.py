@@ -1,0 +1,152 @@
+"""ReSTIR GI against the reference path tracer, statistically.
+
+Every ReSTIR run is independent (its own seed, a fresh ReSTIRGI, a few frames
+of a static view; the last frame is kept), so the spread over runs gives the
+standard error of their mean. The reference is render_frame with many samples;
+its film's per-pixel variance gives its standard error (pixels of the path
+tracer are independent). Means are compared with z-tests: on the whole image
+and on blocks of pixels (Sidak correction over the blocks). The pixel filter
+is off for both, so every pixel sees the same visible point.
+
+- The unbiased mode, with and without reuse, has the path tracer's mean.
+- The biased mode trades that for far less variance than 1 spp path tracing.
+"""
+
+import math
+from statistics import NormalDist
+
+import numpy as np
+import pytest
+
+from core import RenderContext, RenderSettings, render_frame
+from core.restir import BIASED, UNBIASED, ReSTIRGI, ReSTIRSettings
+from core.sampling import luminance
+from scenes import cornell_box
+
+SIZE = 16               # image width and height
+BLOCK = 4               # block side in pixels: (SIZE / BLOCK)^2 blocks
+MAX_BOUNCES = 4
+FRAMES = 6              # frames per ReSTIR run (the last one is compared)
+REFERENCE_SPP = 1024
+RUNS = 96               # independent ReSTIR runs per mode
+ALPHA = 1e-3            # false-alarm rate of each test (whole family for the blocks)
+
+
+def make_scene():
+    scene = cornell_box("area", SIZE, SIZE)
+    scene.filter_width = 0.0
+    return scene
+
+
+@pytest.fixture(scope="module")
+def ctx():
+    c = RenderContext.build(make_scene())
+    yield c
+    c.close()
+
+
+def blocks(images):
+    """(..., P) luminance images -> (..., B) block sums over pixels."""
+    b = SIZE // BLOCK
+    lead = images.shape[:-1]
+    return images.reshape(*lead, b, BLOCK, b, BLOCK).sum(axis=(-3, -1)).reshape(*lead, b * b)
+
+
+class Reference:
+    """Mean luminance per pixel (P,) and the variance of that mean (P,)."""
+
+    def __init__(self, film):
+        self.count = film.count
+        self.mean = luminance(film.mean().reshape(-1, 3)).astype(np.float64)
+        self.var_of_mean = film.variance_of_mean().reshape(-1).astype(np.float64)
+
+    @property
+    def var_1spp(self):
+        """Per-pixel variance of one path-traced sample."""
+        return self.var_of_mean * self.count
+
+
+@pytest.fixture(scope="module")
+def reference(ctx):
+    return Reference(render_frame(ctx, RenderSettings(samples=REFERENCE_SPP, max_bounces=MAX_BOUNCES, seed=0)))
+
+
+def restir_runs(ctx, runs, **kw):
+    """Luminance of the last frame of ``runs`` independent ReSTIR runs, (runs, P)."""
+    out = []
+    for r in range(runs):
+        restir = ReSTIRGI()
+        settings = ReSTIRSettings(seed=1000 + r, max_bounces=MAX_BOUNCES, **kw)
+        for f in range(FRAMES):
+            result = restir.render_frame(ctx, settings, f)
+        out.append(luminance(result.color))
+    return np.stack(out).astype(np.float64)
+
+
+def no_reuse_runs(ctx, runs):
+    """Without temporal or spatial reuse every frame is independent: one
+    ReSTIRGI, one frame per run."""
+    restir = ReSTIRGI()
+    settings = ReSTIRSettings(mode=UNBIASED, seed=77, max_bounces=MAX_BOUNCES, temporal=False,
+                              spatial=False, validation_interval=0)
+    return np.stack([luminance(restir.render_frame(ctx, settings, f).color)
+                     for f in range(runs)]).astype(np.float64)
+
+
+def z_scores(runs, ref_mean, ref_var_of_mean):
+    """z of the difference between the column means of independent runs (rows)
+    and a reference mean with a known variance."""
+    se2 = runs.var(axis=0, ddof=1) / len(runs) + ref_var_of_mean
+    return (runs.mean(axis=0) - ref_mean) / np.sqrt(np.maximum(se2, 1e-30))
+
+
+def z_limit(tests):
+    """Two-sided z threshold of a family of ``tests`` at level ALPHA (Sidak)."""
+    per_test = 1.0 - (1.0 - ALPHA) ** (1.0 / tests)
+    return NormalDist().inv_cdf(1.0 - 0.5 * per_test)
+
+
+def assert_same_mean(runs, ref, what):
+    """Image mean and block sums of the runs against the reference (pixels of
+    one path-traced pass are independent, so variances of sums add up)."""
+    total = runs.sum(axis=1, keepdims=True)
+    z_image = float(z_scores(total, ref.mean.sum(), ref.var_of_mean.sum())[0])
+    z_blocks = z_scores(blocks(runs), blocks(ref.mean), blocks(ref.var_of_mean))
+    n = runs.shape[1]
+    se = (total.std(ddof=1) / math.sqrt(len(runs)) / n, math.sqrt(ref.var_of_mean.sum()) / n)
+    summary = (f"{what}: image mean {runs.mean():.5f} (+- {se[0]:.5f}) vs reference {ref.mean.mean():.5f} "
+               f"(+- {se[1]:.5f}), z = {z_image:.2f}; block z in [{z_blocks.min():.2f}, {z_blocks.max():.2f}]")
+    print(summary)
+    assert abs(z_image) < z_limit(1), summary
+    assert np.abs(z_blocks).max() < z_limit(len(z_blocks)), (summary, np.round(z_blocks, 2))
+
+
+def test01_reference_is_lit(reference):
+    """The comparison means something: the image is lit, most blocks are, and
+    the reference's image mean has a standard error below 0.5 %."""
+    assert reference.count == REFERENCE_SPP
+    assert reference.mean.mean() > 0.05
+    assert (blocks(reference.mean) / BLOCK ** 2 > 0.01).mean() > 0.9
+    assert math.sqrt(reference.var_of_mean.sum()) / reference.mean.sum() < 0.005
+
+
+def test02_unbiased_without_reuse_matches_path_tracing(ctx, reference):
+    runs = no_reuse_runs(ctx, 4 * RUNS)
+    assert_same_mean(runs, reference, "unbiased, no reuse")
+
+
+def test03_unbiased_matches_path_tracing(ctx, reference):
+    runs = restir_runs(ctx, RUNS, mode=UNBIASED)
+    assert_same_mean(runs, reference, "unbiased")
+
+
+def test04_biased_has_far_less_variance(ctx, reference):
+    """Mean per-pixel variance over runs against path tracing at 1 spp (with
+    one NEE sample for the direct light too, so only the reuse differs)."""
+    runs = restir_runs(ctx, RUNS // 2, mode=BIASED, light_samples=1)
+    ratio = reference.var_1spp.mean() / runs.var(axis=0, ddof=1).mean()
+    print(f"biased: per-pixel variance {ratio:.1f}x below 1 spp path tracing; "
+          f"mean {runs.mean():.5f} vs {reference.mean.mean():.5f}")
+    assert ratio > 3.0, ratio
+    # Biased, but not wildly so.
+    assert abs(runs.mean() / reference.mean.mean() - 1.0) < 0.1
