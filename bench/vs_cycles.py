@@ -6,7 +6,7 @@ light and area light, both engines at the same samples and bounces.
 Prints, per light: mean luminance of each engine, their ratio, and the block
 chi statistic (squared 8x8-block differences over their variance estimated
 from two independent renders per engine: near 1 when the engines agree up to
-noise). Writes bench/out/vs_cycles_<light>.png (ours | Cycles).
+noise). Writes bench/out/vs_cycles.png (one row per light, ours | Cycles).
 """
 
 import argparse
@@ -39,6 +39,7 @@ def main():
           "two renders per engine")
     print("| light | ours | Cycles | ratio | block chi | seconds (4 renders) |")
     print("|---|---:|---:|---:|---:|---:|")
+    rows = []
     for light in ("emitter", "point", "area"):
         scene = cornell._cornell(light)
         set_resolution(scene, args.size, args.size)
@@ -46,7 +47,9 @@ def main():
         r = compare_with_cycles(scene, args.samples, args.bounces)
         print(f"| {light} | {r['ours_mean']:.4f} | {r['cycles_mean']:.4f} | {r['ratio']:.4f} "
               f"| {r['chi']:.2f} | {time.perf_counter() - t0:.0f} |", flush=True)
-        write_png(OUT / f"vs_cycles_{light}.png", np.concatenate([r["ours"], r["cycles"]], axis=1))
+        rows.append(np.concatenate([r["ours"], r["cycles"]], axis=1))
+    write_png(OUT / "vs_cycles.png", np.concatenate(rows[::-1], axis=0))   # emitter on top
+    print(f"wrote {OUT / 'vs_cycles.png'} (rows: emitter, point, area; left ours, right Cycles)")
 
 
 if __name__ == "__main__":

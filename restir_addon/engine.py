@@ -2,7 +2,7 @@
 
 import bpy
 
-from . import final
+from . import final, viewport
 from .passes import register_passes
 
 
@@ -17,6 +17,15 @@ class RestirGIRenderEngine(bpy.types.RenderEngine):
 
     def update_render_passes(self, scene=None, renderlayer=None):
         register_passes(self, scene, renderlayer)
+
+    def view_update(self, context, depsgraph):
+        viewport.view_update(self, context, depsgraph)
+
+    def view_draw(self, context, depsgraph):
+        viewport.view_draw(self, context, depsgraph)
+
+    def __del__(self):
+        viewport.free(self)
 
 
 def register():

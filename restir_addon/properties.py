@@ -67,6 +67,26 @@ class RestirGISceneSettings(bpy.types.PropertyGroup):
         description="ReSTIR GI: shadow rays per pixel per frame for the direct light of the visible "
                     "point (direct light is not resampled)",
     )
+    viewport_scale: EnumProperty(
+        name="Viewport Resolution",
+        items=(("AUTO", "Automatic", "Pick the resolution scale from the frame time budget"),
+               ("FULL", "Full", "Render the viewport at full resolution"),
+               ("HALF", "1/2", "Render the viewport at half resolution"),
+               ("QUARTER", "1/4", "Render the viewport at quarter resolution")),
+        default="AUTO", description="Resolution of the rendered viewport, for interactivity",
+    )
+    viewport_samples: IntProperty(
+        name="Viewport Samples", default=32, min=1, max=65536,
+        description="Path tracing in the viewport: samples before it stops refining",
+    )
+    viewport_idle_frames: IntProperty(
+        name="Viewport Idle Frames", default=32, min=1, max=65536,
+        description="ReSTIR GI in the viewport: frames of a still view before it stops refining",
+    )
+    viewport_frame_budget: FloatProperty(
+        name="Frame Budget", default=0.25, min=0.01, max=10.0, subtype="TIME_ABSOLUTE", unit="TIME_ABSOLUTE",
+        description="Time a viewport frame should take; the automatic resolution aims for it",
+    )
     validation_interval: IntProperty(
         name="Validation Interval", default=4, min=0, max=1000,
         description="Every this many frames, stored samples are re-traced and dropped where their "

@@ -67,6 +67,22 @@ class RESTIR_RENDER_PT_resampling(RestirButtonsPanel, bpy.types.Panel):
         layout.prop(s, "validation_interval")
 
 
+class RESTIR_RENDER_PT_viewport(RestirButtonsPanel, bpy.types.Panel):
+    bl_label = "Viewport"
+    bl_parent_id = "RESTIR_RENDER_PT_sampling"
+    bl_options = {"DEFAULT_CLOSED"}
+
+    def draw(self, context):
+        layout = self.layout
+        layout.use_property_split = True
+        layout.use_property_decorate = False
+        s = context.scene.restir_gi
+        layout.prop(s, "viewport_scale")
+        layout.prop(s, "viewport_frame_budget")
+        layout.prop(s, "viewport_samples")
+        layout.prop(s, "viewport_idle_frames")
+
+
 class RESTIR_RENDER_PT_light_paths(RestirButtonsPanel, bpy.types.Panel):
     bl_label = "Light Paths"
 
@@ -77,7 +93,8 @@ class RESTIR_RENDER_PT_light_paths(RestirButtonsPanel, bpy.types.Panel):
         layout.prop(context.scene.restir_gi, "max_bounces")
 
 
-classes = (RESTIR_RENDER_PT_sampling, RESTIR_RENDER_PT_resampling, RESTIR_RENDER_PT_light_paths)
+classes = (RESTIR_RENDER_PT_sampling, RESTIR_RENDER_PT_resampling, RESTIR_RENDER_PT_viewport,
+           RESTIR_RENDER_PT_light_paths)
 
 
 def _adopted_panels():

@@ -56,7 +56,7 @@ def _object_mesh(obj, cache):
     return cache[key]
 
 
-def _instance_key(inst, obj):
+def instance_key(inst, obj):
     """Identity of a placed object that stays the same from frame to frame (for
     motion between frames): its name, plus the instancer's persistent id."""
     name = obj.original.name if obj.original is not None else obj.name
@@ -101,7 +101,7 @@ def export_scene(depsgraph, width=None, height=None):
         normals.append(nrm)
         uvs.append(mesh.uvs)
         mids.append(slot_ids[slots])
-        key = _instance_key(inst, obj)
+        key = instance_key(inst, obj)
         if key not in object_index:
             object_index[key] = len(object_index)
             object_matrices.append(np.array(inst.matrix_world, np.float32))

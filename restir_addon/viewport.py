@@ -1,0 +1,1018 @@
+"""Viewport rendered mode: incremental scene sync and progressive frames.
+
+``ViewportSession`` holds everything one 3D viewport renders with and is driven
+the same way by the engine and by tests:
+
+- ``sync(depsgraph, updates)`` reads what changed from Blender (UI thread):
+  a transform-only change reads the new matrices (no mesh data), a geometry
+  change re-reads that object's mesh only, material, light and world edits
+  replace their table and never touch triangles or the Embree scenes.
+- ``set_view(camera)`` and ``resize(width, height)`` take the viewport's
+  camera and size (a resize never re-exports).
+- ``render_step(time_budget)`` applies the queued changes to the core scene
+  (moved objects go to the small dynamic Embree scene of
+  ``core.dynamic_accel``) and renders one frame: a ReSTIR GI frame that keeps
+  its reservoirs through camera and object motion, or one more path-traced
+  sample. Frames are averaged while nothing changes; work stops once the
+  image has ``samples`` path-traced samples or ``idle_frames`` ReSTIR frames.
+- ``start()`` runs ``render_step`` on a background thread (one per session),
+  which never calls bpy; ``close()`` stops it (the frame in progress is
+  abandoned at its next ray batch) and frees the buffers.
+
+Only ``sync`` touches bpy; everything it read is queued under a lock and
+applied by ``render_step`` between two frames, so the render thread never
+sees a scene half-updated. The engine's callbacks (``view_update``,
+``view_draw``, ``free`` at the end of this file) only hand work over; the GPU
+drawing is a few lines, skipped in background mode where bpy has no GPU.
+"""
+
+import threading
+import time
+import traceback
+from dataclasses import dataclass, field, replace
+
+import bpy
+import numpy as np
+
+from ..core.camera import PixelFilter
+from ..core.dynamic_accel import DynamicAccel, TraceInterrupted
+from ..core.film import to_rgba
+from ..core.integrators.base import RAY_EPS_RELATIVE, RenderContext
+from ..core.integrators.path import camera_pass
+from ..core.lights import LightSet
+from ..core.render import CHUNK_PIXELS
+from ..core.restir import ReSTIRGI, ReSTIRSettings
+from ..core.scene import Camera, Lights, Materials, Scene
+from .export import Warnings, instance_key
+from .export.camera import export_camera, render_size
+from .export.lights import is_supported, light_row
+from .export.materials import material_row
+from .export.mesh import GEOMETRY_TYPES, MeshData, place, read_mesh
+from .export.world import export_world
+
+PATH = "PATH"
+SCALES = {"FULL": 1, "HALF": 2, "QUARTER": 4}
+
+# Defaults of the viewport settings (see ViewportSession).
+DEFAULT_SCALE = "AUTO"
+DEFAULT_FRAME_BUDGET = 0.25     # seconds per frame the AUTO scale aims for
+DEFAULT_SAMPLES = 32            # path tracing: samples before the viewport stops
+DEFAULT_IDLE_FRAMES = 32        # ReSTIR GI: frames of a still view before it stops
+DEFAULT_SETTLE_FRAMES = 8       # frames without edits before moved objects rejoin the static scene
+
+# AUTO scale: go to a finer scale only when its predicted frame time is well
+# under the budget, to a coarser one only when well over (every change of
+# resolution drops the reservoirs).
+_FINER_BELOW = 0.7
+_COARSER_ABOVE = 1.3
+
+# An edit arriving this early in a frame (fraction of the last frame time)
+# abandons it and starts over with the edit; never two frames in a row, so a
+# continuous drag still gets frames out.
+RESTART_FRACTION = 0.5
+
+
+@dataclass
+class Work:
+    """What the session did, counted (tests assert on these)."""
+    full_exports: int = 0           # whole depsgraph read (first sync)
+    mesh_exports: int = 0           # meshes read from Blender (a full export reads them all)
+    object_walks: int = 0           # passes over the depsgraph's instances (matrices only)
+    transform_updates: int = 0      # placed objects whose matrix changed
+    triangle_updates: int = 0       # times triangle arrays were rewritten (whole or in part)
+    accel_static_builds: int = 0    # Embree builds of the static scene (all but moving objects)
+    accel_dynamic_builds: int = 0   # Embree builds of the small scene of moving objects
+    material_updates: int = 0
+    light_updates: int = 0
+    world_updates: int = 0
+    camera_updates: int = 0
+    resizes: int = 0
+    settings_updates: int = 0
+    frames: int = 0                 # frames (or path-traced samples) rendered
+    abandoned_frames: int = 0       # frames dropped mid-way for an edit, a resize or close
+
+
+@dataclass
+class Update:
+    """One entry of depsgraph.updates, reduced to what sync needs."""
+    id: object                      # the original ID
+    transform: bool
+    geometry: bool
+    shading: bool
+
+
+def as_update(item):
+    """An Update from a DepsgraphUpdate or from a tuple (id, transform, geometry, shading)."""
+    if isinstance(item, Update):
+        return item
+    if isinstance(item, tuple):
+        return Update(*item)
+    return Update(getattr(item.id, "original", item.id), bool(item.is_updated_transform),
+                  bool(item.is_updated_geometry), bool(item.is_updated_shading))
+
+
+@dataclass
+class _Instance:
+    """A placed geometry instance as read from Blender."""
+    mesh: MeshData                  # object space, shared by instances of one mesh
+    matrix: np.ndarray              # (4, 4) float64
+    slot_ids: np.ndarray            # material id of each slot
+
+
+@dataclass
+class _Pending:
+    """Changes read by sync, waiting for the render side (merged until applied)."""
+    instances: dict = None          # latest key -> _Instance snapshot, if objects changed
+    moved: set = field(default_factory=set)      # matrix changed
+    remeshed: set = field(default_factory=set)   # mesh re-read (or new object)
+    reslotted: set = field(default_factory=set)  # material slots changed
+    layout: bool = False            # objects added or removed
+    full: bool = False              # a full export: build everything afresh
+    materials: Materials = None
+    lights: Lights = None
+    world: np.ndarray = None
+    camera: Camera = None
+    size: tuple = None              # display size
+    filter_width: float = None
+    settings: bool = False
+    generation: int = 0
+
+    def empty(self):
+        return (self.instances is None and self.materials is None and self.lights is None
+                and self.world is None and self.camera is None and self.size is None
+                and self.filter_width is None and not self.settings)
+
+
+class _MaterialTable:
+    """Material rows keyed by the original material, row 0 the default."""
+
+    def __init__(self, warn):
+        self.rows = [material_row(None, warn)]
+        self.index = {}
+        self.warn = warn
+
+    def id_of(self, mat):
+        if mat is None:
+            return 0
+        key = mat.original.as_pointer()
+        if key not in self.index:
+            self.index[key] = len(self.rows)
+            self.rows.append(material_row(mat, self.warn))
+        return self.index[key]
+
+    def refresh(self, mat_original, depsgraph):
+        """Re-read one material; True if its row changed."""
+        i = self.index.get(mat_original.as_pointer())
+        if i is None:
+            return False
+        row = material_row(mat_original.evaluated_get(depsgraph), self.warn)
+        if _row_signature(row) == _row_signature(self.rows[i]):
+            return False
+        self.rows[i] = row
+        return True
+
+    def table(self):
+        return Materials.from_list(self.rows)
+
+
+def _row_signature(row):
+    return tuple(sorted((k, tuple(np.ravel(v).tolist()) if not isinstance(v, str) else v)
+                        for k, v in row.items()))
+
+
+def _same_camera(a, b):
+    if a is None or b is None:
+        return a is b
+    return all(np.array_equal(np.asarray(getattr(a, f)), np.asarray(getattr(b, f)))
+               for f in a.__dataclass_fields__)
+
+
+def _clean_mesh(mesh):
+    """Drop degenerate and non-finite triangles (as core.make_scene does)."""
+    if mesh is None or len(mesh.triangles) == 0:
+        return mesh
+    p = mesh.positions[mesh.triangles]
+    cross = np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0])
+    with np.errstate(invalid="ignore", over="ignore"):
+        area2 = np.einsum("ij,ij->i", cross, cross)
+    keep = np.isfinite(p).all(axis=(1, 2)) & (area2 > 0) & np.isfinite(area2)
+    if keep.all():
+        return mesh
+    return MeshData(mesh.positions, mesh.triangles[keep], mesh.normals[keep], mesh.uvs[keep],
+                    mesh.slots[keep])
+
+
+def _mesh_key(obj):
+    return obj.data.as_pointer() if obj.type == "MESH" else ("converted", obj.name)
+
+
+def _read_object_mesh(obj):
+    """MeshData of an evaluated geometry object (None if it has no mesh)."""
+    if obj.type == "MESH":
+        return _clean_mesh(read_mesh(obj.data))
+    try:
+        me = obj.to_mesh()
+    except RuntimeError:
+        return None
+    if me is None:
+        return None
+    try:
+        return _clean_mesh(read_mesh(me))
+    finally:
+        obj.to_mesh_clear()
+
+
+def _face_normals(pos, tris):
+    """Unit geometric normals, computed as core.make_scene does."""
+    if len(tris) == 0:
+        return np.zeros((0, 3), np.float32)
+    p = pos[tris]
+    ng = np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0])
+    return (ng / np.maximum(np.linalg.norm(ng, axis=1, keepdims=True), 1e-30)).astype(np.float32)
+
+
+def _placed(inst):
+    """World-space (positions, corner normals, face normals) of an instance."""
+    pos, nrm = place(inst.mesh, inst.matrix)
+    nrm = np.where(np.isfinite(nrm), nrm, 0.0).astype(np.float32)
+    return pos, nrm, _face_normals(pos, inst.mesh.triangles)
+
+
+def camera_from_view(view_matrix, window_matrix):
+    """core.Camera of a viewport from its view (world to view) and window
+    (projection) matrices, whatever the image size: the sensor is fitted to
+    the width, and the image keeps the projection's aspect."""
+    V = np.asarray(view_matrix, np.float64)
+    P = np.asarray(window_matrix, np.float64)
+    to_world = np.linalg.inv(V).astype(np.float32)
+    if abs(P[3, 3]) < 0.5:      # perspective: last row (0, 0, -1, 0)
+        near, far = P[2, 3] / (P[2, 2] - 1.0), P[2, 3] / (P[2, 2] + 1.0)
+        return Camera(to_world=to_world, projection="PERSP", lens=float(P[0, 0]), sensor_width=2.0,
+                      sensor_height=2.0, sensor_fit="HORIZONTAL", shift_x=float(P[0, 2] / 2),
+                      shift_y=float(P[1, 2] * P[0, 0] / (2 * P[1, 1])), clip_start=float(near),
+                      clip_end=float(far))
+    near, far = (P[2, 3] + 1.0) / P[2, 2], (P[2, 3] - 1.0) / P[2, 2]
+    return Camera(to_world=to_world, projection="ORTHO", ortho_scale=float(2.0 / P[0, 0]),
+                  sensor_fit="HORIZONTAL", shift_x=float(-P[0, 3] / 2),
+                  shift_y=float(-P[1, 3] * P[0, 0] / (2 * P[1, 1])), clip_start=float(near),
+                  clip_end=float(far))
+
+
+def camera_from_region(region_data):
+    """core.Camera of a 3D viewport's RegionView3D."""
+    return camera_from_view(region_data.view_matrix, region_data.window_matrix)
+
+
+class ViewportSession:
+    """The state of one viewport: scene, acceleration structure, reservoirs or
+    accumulated samples, the latest frame, and counters of the work done.
+
+    mode: "PATH", "RESTIR_BIASED" or "RESTIR_UNBIASED". scale: "AUTO", "FULL",
+    "HALF" or "QUARTER" (AUTO picks the finest scale whose frame time fits
+    frame_budget). samples: path-traced samples before the viewport stops;
+    idle_frames: ReSTIR frames of a still view before it stops; settle_frames:
+    frames without edits before moved objects rejoin the static Embree scene.
+    """
+
+    def __init__(self, mode="RESTIR_BIASED", scale=DEFAULT_SCALE, samples=DEFAULT_SAMPLES,
+                 idle_frames=DEFAULT_IDLE_FRAMES, frame_budget=DEFAULT_FRAME_BUDGET,
+                 settle_frames=DEFAULT_SETTLE_FRAMES, max_bounces=4, seed=0, restir=None,
+                 threads=None):
+        self.work = Work()
+        self.warnings = Warnings()
+        self.threads = threads
+        self._set_settings(mode, scale, samples, idle_frames, frame_budget, settle_frames,
+                           max_bounces, seed, restir)
+        # --- Blender side (the thread calling sync / set_view / resize) ---
+        self._instances = None          # key -> _Instance of the last sync
+        self._meshes = {}               # mesh key -> MeshData
+        self._materials = None
+        self._light_rows = None
+        self._world = None
+        self._filter_width_read = None
+        self._view = None
+        self._view_from_scene = False   # no set_view yet: the view follows the scene camera
+        self._display = None
+        self._generation = 0
+        # --- handed over under the lock ---
+        self._cond = threading.Condition()
+        self._pending = _Pending()
+        self._stop = False
+        self._abandon = False           # the frame in progress is useless (resize, new settings)
+        self._applying = False          # changes taken from the queue, not yet applied
+        self._frame_started = None      # perf_counter() when the frame in progress started
+        self._frame_is_restart = False  # the frame in progress replaces an abandoned one
+        self._next_is_restart = False
+        self._thread = None
+        # --- render side (render_step) ---
+        self._scene = None
+        self._accel = None
+        self._ctx = None
+        self._restir = ReSTIRGI()
+        self._frame_index = 0
+        self._place_cache = {}          # key -> (positions, normals, face normals) in world space
+        self._layout = {}               # key -> (v0, v1, t0, t1) rows in the combined arrays
+        self._arrays = None
+        self._scene_materials = Materials.from_list([{}])
+        self._scene_lights = Lights.empty()
+        self._world_color = np.zeros(3, np.float32)
+        self._camera = None
+        self._filter_width = 1.5
+        self._size = None               # display size
+        self._divisor = None
+        self._pixel_seconds = None      # measured seconds per pixel per frame
+        self._accum = None              # running sum of frames since the last change
+        self._accum_n = 0
+        self._frames_since_edit = 0     # frames since objects last changed (for settling)
+        self._applied_generation = 0
+        # --- published ---
+        self.frame = None               # (h, w, 4) float32 RGBA, row 0 at the bottom
+        self.frame_serial = 0
+        self.frame_generation = 0       # generation of the changes the frame includes
+        self.last_frame_seconds = None
+        self.last_history_found = None
+        self.error = None
+
+    # ------------------------------------------------------------------ settings
+
+    def _set_settings(self, mode, scale, samples, idle_frames, frame_budget, settle_frames,
+                      max_bounces, seed, restir):
+        if scale != "AUTO" and scale not in SCALES:
+            raise ValueError(f"unknown viewport scale {scale!r}")
+        self.mode = mode
+        self.scale = scale
+        self.samples = max(1, int(samples))
+        self.idle_frames = max(1, int(idle_frames))
+        self.frame_budget = float(frame_budget)
+        self.settle_frames = max(1, int(settle_frames))
+        self.max_bounces = int(max_bounces)
+        self.seed = int(seed)
+        base = restir if restir is not None else ReSTIRSettings()
+        # One initial sample per pixel per frame: the viewport favours frame rate.
+        self.restir_settings = replace(base, mode=mode if mode != PATH else base.mode,
+                                       max_bounces=self.max_bounces, seed=self.seed, samples=1)
+
+    def configure(self, mode="RESTIR_BIASED", scale=DEFAULT_SCALE, samples=DEFAULT_SAMPLES,
+                  idle_frames=DEFAULT_IDLE_FRAMES, frame_budget=DEFAULT_FRAME_BUDGET,
+                  settle_frames=DEFAULT_SETTLE_FRAMES, max_bounces=4, seed=0, restir=None):
+        """New settings (same arguments as the constructor); restarts the image
+        only if something changed."""
+        before = (self.mode, self.scale, self.samples, self.idle_frames, self.frame_budget,
+                  self.settle_frames, self.restir_settings)
+        self._set_settings(mode, scale, samples, idle_frames, frame_budget, settle_frames,
+                           max_bounces, seed, restir)
+        after = (self.mode, self.scale, self.samples, self.idle_frames, self.frame_budget,
+                 self.settle_frames, self.restir_settings)
+        if before != after:
+            self.work.settings_updates += 1
+            self._queue(settings=True, abandon=True)
+
+    # ------------------------------------------------------------------ Blender side
+
+    def _queue(self, abandon=False, **changes):
+        """Merge changes into the pending set and wake the render thread. An
+        edit early in the frame in progress abandons it (see RESTART_FRACTION)."""
+        started = self._frame_started
+        if (not abandon and started is not None and not self._frame_is_restart
+                and self.last_frame_seconds is not None
+                and time.perf_counter() - started < RESTART_FRACTION * self.last_frame_seconds):
+            abandon = True
+        with self._cond:
+            p = self._pending
+            for name, value in changes.items():
+                if name in ("moved", "remeshed", "reslotted"):
+                    getattr(p, name).update(value)
+                elif name in ("layout", "full"):
+                    setattr(p, name, getattr(p, name) or value)
+                else:
+                    setattr(p, name, value)
+            self._generation += 1
+            p.generation = self._generation
+            if abandon:
+                self._abandon = True
+            self._cond.notify_all()
+        return self._generation
+
+    @property
+    def generation(self):
+        """Number of changes queued so far (a frame includes them once its
+        ``frame_generation`` reaches this)."""
+        return self._generation
+
+    def sync(self, depsgraph, updates=None):
+        """Read the depsgraph: everything on the first call (or updates None),
+        then only what ``updates`` (depsgraph.updates, or tuples
+        (id, transform, geometry, shading)) says changed."""
+        scene = depsgraph.scene
+        if self._instances is None or updates is None:
+            self._full_export(depsgraph)
+            return
+        updates = [as_update(u) for u in updates]
+        walk = False
+        reread_objects, reread_data = set(), set()
+        materials, world, scene_changed, camera_moved = [], False, False, False
+        for u in updates:
+            id_ = u.id
+            if isinstance(id_, bpy.types.Object):
+                if u.transform or u.geometry:
+                    walk = True
+                if u.geometry and id_.type != "LIGHT":
+                    reread_objects.add(id_.name)
+                if id_.type == "CAMERA":
+                    camera_moved = True
+            elif isinstance(id_, bpy.types.Material):
+                materials.append(id_)
+            elif isinstance(id_, bpy.types.World):
+                world = True
+            elif isinstance(id_, bpy.types.Scene):
+                scene_changed = True
+                walk = walk or u.transform or u.geometry
+            elif isinstance(id_, bpy.types.Collection):
+                walk = walk or u.transform or u.geometry
+            elif isinstance(id_, (bpy.types.Mesh, bpy.types.Curve, bpy.types.Curves,
+                                  bpy.types.MetaBall)) and u.geometry:
+                walk = True
+                reread_data.add(id_.as_pointer())
+        if materials:
+            changed = [m for m in materials if self._materials.refresh(m, depsgraph)]
+            if changed:
+                self.work.material_updates += len(changed)
+                self._queue(materials=self._materials.table())
+        if walk:
+            self._walk(depsgraph, reread_objects, reread_data)
+        if world or scene_changed:
+            color = export_world(scene.world, self.warnings)
+            if not np.array_equal(color, self._world):
+                self._world = color
+                self.work.world_updates += 1
+                self._queue(world=color)
+        if (camera_moved or scene_changed) and self._view_from_scene:
+            camera = export_camera(depsgraph, self.warnings)
+            if camera is not None and not _same_camera(camera, self._view):
+                self._view = camera
+                self.work.camera_updates += 1
+                self._queue(camera=camera)
+        if scene_changed:
+            fw = float(scene.render.filter_size)
+            if fw != self._filter_width_read:
+                self._filter_width_read = fw
+                self._queue(filter_width=fw)
+
+    def _full_export(self, depsgraph):
+        scene = depsgraph.scene
+        self.work.full_exports += 1
+        self._meshes = {}
+        self._instances = {}
+        self._materials = _MaterialTable(self.warnings)
+        self._light_rows = None
+        self._walk(depsgraph, None, None)
+        self._world = export_world(scene.world, self.warnings)
+        self._filter_width_read = float(scene.render.filter_size)
+        changes = dict(materials=self._materials.table(), world=self._world,
+                       filter_width=self._filter_width_read, full=True)
+        if self._view is None:
+            camera = export_camera(depsgraph, self.warnings)
+            if camera is not None:
+                self._view = camera
+                self._view_from_scene = True
+                changes["camera"] = camera
+        if self._display is None:
+            self._display = render_size(scene)
+            changes["size"] = self._display
+        self._queue(**changes)
+
+    def _walk(self, depsgraph, reread_objects, reread_data):
+        """Pass over the depsgraph's instances: matrices, material slots, lights;
+        meshes are read only when new or flagged (reread_* None: all)."""
+        self.work.object_walks += 1
+        instances, light_rows, fresh = {}, [], set()
+        used_meshes = set()
+        materials_before = len(self._materials.rows)
+        for inst in depsgraph.object_instances:
+            obj = inst.object
+            if obj.type == "LIGHT":
+                if is_supported(obj.data):
+                    light_rows.append(light_row(obj, inst.matrix_world, self.warnings))
+                else:
+                    self.warnings(f"Light '{obj.name}' of type {obj.data.type} is not supported")
+                continue
+            if obj.type not in GEOMETRY_TYPES:
+                continue
+            mkey = _mesh_key(obj)
+            used_meshes.add(mkey)
+            orig = obj.original
+            flagged = reread_objects is None or orig.name in reread_objects or (
+                orig.data is not None and orig.data.as_pointer() in (reread_data or ()))
+            if mkey not in fresh and (flagged or mkey not in self._meshes):
+                self._meshes[mkey] = _read_object_mesh(obj)
+                self.work.mesh_exports += 1
+                fresh.add(mkey)
+            mesh = self._meshes[mkey]
+            if mesh is None or len(mesh.triangles) == 0:
+                continue
+            key = instance_key(inst, obj)
+            while key in instances:     # the same key twice: keep both, numbered
+                key = key + (len(instances),)
+            slot_ids = np.array([self._materials.id_of(s.material) for s in obj.material_slots] or [0],
+                                np.int32)
+            instances[key] = _Instance(mesh, np.array(inst.matrix_world, np.float64), slot_ids)
+        for mkey in set(self._meshes) - used_meshes:
+            del self._meshes[mkey]
+
+        old = self._instances or {}
+        common = instances.keys() & old.keys()
+        remeshed = {k for k in common if instances[k].mesh is not old[k].mesh}
+        remeshed |= instances.keys() - old.keys()
+        moved = {k for k in common - remeshed if not np.array_equal(instances[k].matrix, old[k].matrix)}
+        reslotted = {k for k in common - remeshed
+                     if not np.array_equal(instances[k].slot_ids, old[k].slot_ids)}
+        layout = set(instances) != set(old) or list(instances) != list(old)
+        self._instances = instances
+        changes = {}
+        if moved or remeshed or reslotted or layout or not old:
+            self.work.transform_updates += len(moved)
+            changes.update(instances=instances, moved=moved, remeshed=remeshed,
+                           reslotted=reslotted, layout=layout)
+        if len(self._materials.rows) != materials_before:
+            changes["materials"] = self._materials.table()
+        signature = [_row_signature(r) for r in light_rows]
+        if signature != self._light_rows:
+            if self._light_rows is not None:
+                self.work.light_updates += 1
+            self._light_rows = signature
+            changes["lights"] = Lights.from_list(light_rows)
+        if changes:
+            self._queue(**changes)
+
+    def set_view(self, camera):
+        """The viewport camera (a core.Camera; see camera_from_region). Keeps
+        the reservoirs: the next frame reprojects them."""
+        if _same_camera(camera, self._view):
+            return
+        self._view = camera
+        self._view_from_scene = False
+        self.work.camera_updates += 1
+        self._queue(camera=camera)
+
+    def resize(self, width, height):
+        """The viewport's size in pixels: new buffers, no export."""
+        size = (max(1, int(width)), max(1, int(height)))
+        if size == self._display:
+            return
+        self._display = size
+        self.work.resizes += 1
+        self._queue(size=size, abandon=True)
+
+    # ------------------------------------------------------------------ render side
+
+    @property
+    def converged(self):
+        """Nothing left to do until something changes."""
+        with self._cond:
+            if not self._pending.empty() or self._applying:
+                return False
+        if self._scene is None or self._camera is None:
+            return True
+        target = self.samples if self.mode == PATH else self.idle_frames
+        return self._accum_n >= target
+
+    @property
+    def scene(self):
+        """The core.Scene of the latest frame (render side)."""
+        return self._scene
+
+    @property
+    def view(self):
+        """The camera the latest sync or set_view asked for."""
+        return self._view
+
+    @property
+    def render_size(self):
+        return None if self._scene is None else (self._scene.width, self._scene.height)
+
+    @property
+    def accel(self):
+        return self._accel
+
+    @property
+    def restir(self):
+        return self._restir
+
+    @property
+    def nbytes(self):
+        """Bytes held by the frame buffers and reservoirs."""
+        total = self._restir.nbytes
+        for a in (self.frame, self._accum):
+            if a is not None:
+                total += a.nbytes
+        return total
+
+    def _take_pending(self):
+        with self._cond:
+            p, self._pending = self._pending, _Pending()
+            self._abandon = False
+            self._applying = not p.empty()
+        return p
+
+    def _apply(self, p):
+        """Bring the core scene up to date with the pending changes."""
+        if p.empty():
+            return
+        geometry = False
+        if p.instances is not None:
+            self._apply_objects(p)
+            geometry = True
+        if p.materials is not None:
+            self._scene_materials = p.materials
+        if p.lights is not None:
+            self._scene_lights = p.lights
+        if p.world is not None:
+            self._world_color = np.asarray(p.world, np.float32)
+        if p.filter_width is not None:
+            self._filter_width = p.filter_width
+        if p.camera is not None:
+            self._camera = p.camera
+        if p.size is not None:
+            self._size = p.size
+        if p.settings:
+            self._restir.reset()
+            self._divisor = None
+        self._applied_generation = p.generation
+        self._build_context(geometry or p.materials is not None or p.lights is not None)
+        self._accum, self._accum_n = None, 0
+
+    def _apply_objects(self, p):
+        inst = p.instances
+        changed = p.moved | p.remeshed
+        for key in changed | (self._place_cache.keys() - inst.keys()):
+            self._place_cache.pop(key, None)
+        in_place = self._arrays is not None and not p.layout and all(
+            key in self._layout and self._fits(key, inst[key]) for key in changed | p.reslotted)
+        if in_place:
+            a = self._arrays
+            for key in changed | p.reslotted:
+                v0, v1, t0, t1 = self._layout[key]
+                it = inst[key]
+                if key in changed:
+                    pos, nrm, fn = self._place(key, it)
+                    a["vertices"][v0:v1], a["normals"][t0:t1], a["face_normals"][t0:t1] = pos, nrm, fn
+                    a["triangles"][t0:t1] = it.mesh.triangles + v0
+                    a["uvs"][t0:t1] = it.mesh.uvs
+                    a["matrices"][a["keys"].index(key)] = it.matrix
+                a["material_ids"][t0:t1] = it.slot_ids[np.clip(it.mesh.slots, 0, len(it.slot_ids) - 1)]
+        else:
+            self._assemble(inst)
+        self.work.triangle_updates += 1
+        a = self._arrays
+        if p.full and self._accel is not None:
+            self._accel.close()
+            self._accel = None
+        if self._accel is None:
+            self._accel = DynamicAccel(a["vertices"], a["triangles"], a["object_ids"], a["keys"],
+                                       self.threads)
+            self._count_builds(0, 0)
+        else:
+            counts = self._accel.static_builds, self._accel.dynamic_builds
+            self._accel.update(a["vertices"], a["triangles"], a["object_ids"], a["keys"],
+                               changed=changed & inst.keys())
+            self._count_builds(*counts)
+        self._accel.interrupt = self._should_abandon
+        self._frames_since_edit = 0
+
+    def _count_builds(self, static_before, dynamic_before):
+        self.work.accel_static_builds += self._accel.static_builds - static_before
+        self.work.accel_dynamic_builds += self._accel.dynamic_builds - dynamic_before
+
+    def _fits(self, key, inst):
+        v0, v1, t0, t1 = self._layout[key]
+        return v1 - v0 == len(inst.mesh.positions) and t1 - t0 == len(inst.mesh.triangles)
+
+    def _place(self, key, inst):
+        if key not in self._place_cache:
+            self._place_cache[key] = _placed(inst)
+        return self._place_cache[key]
+
+    def _assemble(self, instances):
+        """Combined arrays of every instance (placed ones reused from the cache)."""
+        parts = {k: [] for k in ("vertices", "triangles", "normals", "uvs", "material_ids",
+                                 "object_ids", "face_normals")}
+        layout, keys, matrices = {}, [], []
+        v_off = t_off = 0
+        for oid, (key, it) in enumerate(instances.items()):
+            pos, nrm, fn = self._place(key, it)
+            nv, nt = len(pos), len(it.mesh.triangles)
+            parts["vertices"].append(pos)
+            parts["triangles"].append(it.mesh.triangles + v_off)
+            parts["normals"].append(nrm)
+            parts["uvs"].append(it.mesh.uvs)
+            parts["material_ids"].append(it.slot_ids[np.clip(it.mesh.slots, 0, len(it.slot_ids) - 1)])
+            parts["object_ids"].append(np.full(nt, oid, np.int32))
+            parts["face_normals"].append(fn)
+            layout[key] = (v_off, v_off + nv, t_off, t_off + nt)
+            keys.append(key)
+            matrices.append(it.matrix)
+            v_off += nv
+            t_off += nt
+        shapes = {"vertices": (0, 3), "triangles": (0, 3), "normals": (0, 3, 3), "uvs": (0, 3, 2),
+                  "material_ids": (0,), "object_ids": (0,), "face_normals": (0, 3)}
+        dtypes = {"triangles": np.int32, "material_ids": np.int32, "object_ids": np.int32}
+        a = {}
+        for name, items in parts.items():
+            dtype = dtypes.get(name, np.float32)
+            a[name] = (np.concatenate(items).astype(dtype) if items
+                       else np.zeros(shapes[name], dtype))
+        a["keys"] = keys
+        a["matrices"] = (np.stack(matrices).astype(np.float32) if matrices
+                         else np.zeros((0, 4, 4), np.float32))
+        self._arrays = a
+        self._layout = layout
+
+    def _build_context(self, lights_changed):
+        a = self._arrays
+        if a is None or self._camera is None or self._size is None:
+            self._ctx = None
+            return
+        w, h = self._render_resolution()
+        mats = self._scene_materials
+        mids = a["material_ids"]
+        if len(mids) and mids.max() >= len(mats):
+            mids = np.where(mids < len(mats), mids, 0).astype(np.int32)
+        scene = Scene(vertices=a["vertices"], triangles=a["triangles"], normals=a["normals"],
+                      uvs=a["uvs"], material_ids=mids, object_ids=a["object_ids"], materials=mats,
+                      lights=self._scene_lights, camera=self._camera, world_color=self._world_color,
+                      width=w, height=h, filter_width=self._filter_width,
+                      object_keys=list(a["keys"]), object_matrices=a["matrices"].copy(),
+                      face_normals=a["face_normals"])
+        if self._ctx is None or lights_changed:
+            lights = LightSet(scene)
+            eps = RAY_EPS_RELATIVE * scene.extent()
+        else:
+            lights, eps = self._ctx.lights, self._ctx.eps
+            lights.lights = scene.lights
+        self._scene = scene
+        self._ctx = RenderContext(scene, self._accel, lights, eps)
+
+    def _render_resolution(self):
+        if self._divisor is None:
+            self._divisor = SCALES.get(self.scale, SCALES["QUARTER"])
+        w, h = self._size
+        d = self._divisor
+        return max(1, (w + d - 1) // d), max(1, (h + d - 1) // d)
+
+    def _choose_divisor(self, budget):
+        """AUTO scale: the finest divisor whose predicted frame time fits the budget."""
+        if self.scale != "AUTO":
+            return SCALES[self.scale]
+        current = self._divisor or SCALES["QUARTER"]
+        if self._pixel_seconds is None or not budget or budget <= 0:
+            return current
+        w, h = self._size
+
+        def predicted(d):
+            return self._pixel_seconds * ((w + d - 1) // d) * ((h + d - 1) // d)
+
+        if predicted(current) > _COARSER_ABOVE * budget:
+            coarser = [d for d in (2, 4) if d > current]
+            return next((d for d in coarser if predicted(d) <= budget), 4) if coarser else current
+        finer = [d for d in (1, 2) if d < current and predicted(d) <= _FINER_BELOW * budget]
+        return finer[0] if finer else current
+
+    def _should_abandon(self):
+        return self._stop or self._abandon
+
+    def render_step(self, time_budget=None):
+        """Apply pending changes and render one frame. Returns True if a frame
+        was rendered, False when there is nothing to do (converged, no scene)."""
+        budget = self.frame_budget if time_budget is None else time_budget
+        try:
+            self._apply(self._take_pending())
+        finally:
+            self._applying = False
+        if self._ctx is None:
+            return False
+        if self._frames_since_edit >= self.settle_frames and self._accel.dynamic_keys:
+            counts = self._accel.static_builds, self._accel.dynamic_builds
+            self._accel.settle()
+            self._count_builds(*counts)
+        if self.converged:
+            return False
+        divisor = self._choose_divisor(budget)
+        if divisor != self._divisor:
+            self._divisor = divisor
+            self._build_context(False)
+            self._accum, self._accum_n = None, 0
+        scene = self._scene
+        w, h = scene.width, scene.height
+        t0 = time.perf_counter()
+        self._frame_is_restart, self._next_is_restart = self._next_is_restart, False
+        self._frame_started = t0
+        try:
+            if self.mode == PATH:
+                color = self._path_sample(self._accum_n)
+            else:
+                result = self._restir.render_frame(self._ctx, self.restir_settings, self._frame_index)
+                self._frame_index += 1
+                self.last_history_found = result.history_found
+                color = result.color
+        except TraceInterrupted:
+            self.work.abandoned_frames += 1
+            self._next_is_restart = True
+            raise
+        finally:
+            self._frame_started = None
+        seconds = time.perf_counter() - t0
+        color = np.nan_to_num(np.asarray(color, np.float64), nan=0.0, posinf=0.0, neginf=0.0)
+        self._accum = color if self._accum is None else self._accum + color
+        self._accum_n += 1
+        self._frames_since_edit += 1
+        self.frame = to_rgba((self._accum / self._accum_n).reshape(h, w, 3))
+        self.frame_generation = self._applied_generation
+        self.frame_serial += 1
+        self.last_frame_seconds = seconds
+        self.work.frames += 1
+        per_pixel = seconds / max(1, w * h)
+        self._pixel_seconds = per_pixel if self._pixel_seconds is None else (
+            0.5 * self._pixel_seconds + 0.5 * per_pixel)
+        return True
+
+    def _path_sample(self, sample):
+        """One path-traced sample per pixel, in batches (an abandon is noticed
+        between them through the accel)."""
+        scene = self._scene
+        w, h = scene.width, scene.height
+        n = w * h
+        color = np.zeros((n, 3), np.float32)
+        pixel_filter = PixelFilter(scene.filter_width)
+        for a in range(0, n, CHUNK_PIXELS):
+            pix = np.arange(a, min(a + CHUNK_PIXELS, n))
+            color[pix] = camera_pass(self._ctx, w, h, self.seed, 0, sample, self.max_bounces,
+                                     pixel_filter, pixels=pix).color
+        return color
+
+    # ------------------------------------------------------------------ thread
+
+    def start(self):
+        """Render on a background thread until closed (idle while converged)."""
+        if self._thread is not None:
+            return
+        self._thread = threading.Thread(target=self._run, name="restir-viewport", daemon=True)
+        self._thread.start()
+
+    @property
+    def running(self):
+        return self._thread is not None and self._thread.is_alive()
+
+    def _run(self):
+        try:
+            while True:
+                with self._cond:
+                    while not self._stop and self._pending.empty() and (self.converged or self.error):
+                        self._cond.wait()
+                    if self._stop:
+                        break
+                try:
+                    self.render_step()
+                    self.error = None
+                except TraceInterrupted:
+                    continue
+                except Exception as exc:  # keep the viewport alive; show the error, wait for edits
+                    traceback.print_exc()
+                    self.error = str(exc) or type(exc).__name__
+        finally:
+            self._free()
+
+    def wait_for_frame(self, generation=None, timeout=30.0):
+        """Block until a frame including change ``generation`` (default: all
+        queued so far) is published, or the session has nothing to do. For
+        tests and benchmarks, never for the UI."""
+        target = self._generation if generation is None else generation
+        deadline = time.perf_counter() + timeout
+        while time.perf_counter() < deadline:
+            if self.frame is not None and self.frame_generation >= target:
+                return True
+            if not self.running:
+                return False
+            time.sleep(0.002)
+        return False
+
+    def close(self, wait=True, timeout=10.0):
+        """Stop the render thread (its frame in progress is abandoned at the next
+        ray batch) and free the buffers; with wait False, return at once and let
+        the thread free them when it exits."""
+        with self._cond:
+            self._stop = True
+            self._cond.notify_all()
+        thread = self._thread
+        if thread is None:
+            self._free()
+            return True
+        if wait:
+            thread.join(timeout)
+        return not thread.is_alive()
+
+    def _free(self):
+        if self._accel is not None:
+            self._accel.close()
+        self._accel = self._ctx = self._scene = None
+        self._arrays = None
+        self._place_cache = {}
+        self._layout = {}
+        self._restir.reset()
+        self._accum, self._accum_n = None, 0
+        self.frame = None
+
+    def status(self):
+        if self.error:
+            return f"Error: {self.error}"
+        if self._scene is None:
+            return "Waiting for the scene"
+        w, h = self._scene.width, self._scene.height
+        what = "sample" if self.mode == PATH else "frame"
+        target = self.samples if self.mode == PATH else self.idle_frames
+        state = "done" if self.converged else f"{what} {self._accum_n}/{target}"
+        timing = f" | {self.last_frame_seconds:.2f} s/{what}" if self.last_frame_seconds else ""
+        return f"{w}x{h} (1/{self._divisor}) | {state}{timing}"
+
+
+# ---------------------------------------------------------------------- engine callbacks
+
+def session_settings(scene):
+    """ViewportSession arguments from the scene's settings (viewport_* ones
+    are optional: defaults when the scene has none)."""
+    from .final import restir_settings
+    s = scene.restir_gi
+    return dict(mode=s.mode, scale=getattr(s, "viewport_scale", DEFAULT_SCALE),
+                samples=getattr(s, "viewport_samples", DEFAULT_SAMPLES),
+                idle_frames=getattr(s, "viewport_idle_frames", DEFAULT_IDLE_FRAMES),
+                frame_budget=getattr(s, "viewport_frame_budget", DEFAULT_FRAME_BUDGET),
+                max_bounces=s.max_bounces, seed=s.seed, restir=restir_settings(scene))
+
+
+def view_update(engine, context, depsgraph):
+    try:
+        session = getattr(engine, "viewport_session", None)
+        if session is None:
+            session = ViewportSession(**session_settings(depsgraph.scene))
+            engine.viewport_session = session
+            session.resize(context.region.width, context.region.height)
+            session.set_view(camera_from_region(context.region_data))
+            session.sync(depsgraph)
+            session.start()
+            return
+        session.configure(**session_settings(depsgraph.scene))
+        session.sync(depsgraph, depsgraph.updates)
+    except Exception as exc:  # never let the viewport die with a traceback
+        traceback.print_exc()
+        engine.update_stats("", f"ReSTIR GI viewport failed: {exc}")
+
+
+def view_draw(engine, context, depsgraph):
+    session = getattr(engine, "viewport_session", None)
+    if session is None:
+        return
+    try:
+        region = context.region
+        # Settings edited in a panel need not reach view_update (no depsgraph
+        # update for add-on properties): compare them on every redraw (cheap).
+        session.configure(**session_settings(depsgraph.scene))
+        session.resize(region.width, region.height)
+        session.set_view(camera_from_region(context.region_data))
+        serial, frame = session.frame_serial, session.frame    # the thread may replace it
+        if frame is not None and not bpy.app.background:
+            _draw(engine, depsgraph.scene, frame, serial, region.width, region.height)
+        engine.update_stats("", f"ReSTIR GI | {session.status()}")
+        if not session.converged:
+            engine.tag_redraw()
+    except Exception as exc:
+        traceback.print_exc()
+        engine.update_stats("", f"ReSTIR GI viewport failed: {exc}")
+
+
+def _draw(engine, scene, frame, serial, width, height):
+    """Draw a frame over the region through Blender's display transform (the
+    texture is uploaded once per new frame)."""
+    import gpu
+    from gpu_extras.presets import draw_texture_2d
+    cached = getattr(engine, "viewport_texture", None)
+    if cached is None or cached[0] != serial:
+        frame = np.ascontiguousarray(frame, np.float32)
+        h, w = frame.shape[:2]
+        pixels = gpu.types.Buffer("FLOAT", w * h * 4, frame.ravel())
+        cached = (serial, gpu.types.GPUTexture((w, h), format="RGBA16F", data=pixels))
+        engine.viewport_texture = cached
+    gpu.state.blend_set("ALPHA_PREMULT")
+    engine.bind_display_space_shader(scene)
+    draw_texture_2d(cached[1], (0, 0), width, height)
+    engine.unbind_display_space_shader()
+    gpu.state.blend_set("NONE")
+
+
+def free(engine):
+    """The viewport closed: stop the render thread without waiting for it."""
+    try:
+        session = getattr(engine, "viewport_session", None)
+    except Exception:   # the engine's Blender data may already be gone
+        return
+    if session is not None:
+        engine.viewport_session = None
+        session.close(wait=False)
