@@ -287,6 +287,31 @@ def make_linear(ob):
         fc.update()
 
 
+def register_engine():
+    """Register the engine from this source tree, so the files can carry its
+    settings (stored with the scene, read when the extension is installed)."""
+    import importlib.util
+    import sys
+    root = os.path.dirname(HERE)
+    if "restir_gi" not in sys.modules:
+        spec = importlib.util.spec_from_file_location(
+            "restir_gi", os.path.join(root, "__init__.py"), submodule_search_locations=[root])
+        module = importlib.util.module_from_spec(spec)
+        sys.modules["restir_gi"] = module
+        spec.loader.exec_module(module)
+        module.register()
+
+
+def use_restir(scene):
+    """The animated example renders with ReSTIR GI (biased), two-bounce GI."""
+    register_engine()
+    s = scene.restir_gi
+    s.mode = "RESTIR_BIASED"
+    s.samples = 1
+    s.max_bounces = 2
+    s.warmup_frames = 16
+
+
 def save(name):
     path = os.path.join(HERE, name)
     # Overwriting would leave a "<name>.blend1" backup next to the file.
@@ -470,6 +495,7 @@ def build_room_animated():
     make_linear(cam)
     make_linear(moving)
     scene.frame_set(1)
+    use_restir(scene)
     return save("room_animated.blend")
 
 
