@@ -43,10 +43,9 @@ from ..core.lights import LightSet
 from ..core.render import CHUNK_PIXELS
 from ..core.restir import ReSTIRGI, ReSTIRSettings
 from ..core.scene import Camera, Lights, Materials, Scene
-from .export import Warnings, instance_key
+from .export import MaterialTable, Warnings, instance_key, row_signature
 from .export.camera import export_camera, render_size
 from .export.lights import is_supported, light_row
-from .export.materials import material_row
 from .export.mesh import GEOMETRY_TYPES, MeshData, place, read_mesh
 from .export.world import export_world
 
@@ -141,43 +140,6 @@ class _Pending:
         return (self.instances is None and self.materials is None and self.lights is None
                 and self.world is None and self.camera is None and self.size is None
                 and self.filter_width is None and not self.settings)
-
-
-class _MaterialTable:
-    """Material rows keyed by the original material, row 0 the default."""
-
-    def __init__(self, warn):
-        self.rows = [material_row(None, warn)]
-        self.index = {}
-        self.warn = warn
-
-    def id_of(self, mat):
-        if mat is None:
-            return 0
-        key = mat.original.as_pointer()
-        if key not in self.index:
-            self.index[key] = len(self.rows)
-            self.rows.append(material_row(mat, self.warn))
-        return self.index[key]
-
-    def refresh(self, mat_original, depsgraph):
-        """Re-read one material; True if its row changed."""
-        i = self.index.get(mat_original.as_pointer())
-        if i is None:
-            return False
-        row = material_row(mat_original.evaluated_get(depsgraph), self.warn)
-        if _row_signature(row) == _row_signature(self.rows[i]):
-            return False
-        self.rows[i] = row
-        return True
-
-    def table(self):
-        return Materials.from_list(self.rows)
-
-
-def _row_signature(row):
-    return tuple(sorted((k, tuple(np.ravel(v).tolist()) if not isinstance(v, str) else v)
-                        for k, v in row.items()))
 
 
 def _same_camera(a, b):
@@ -463,7 +425,7 @@ class ViewportSession:
         self.work.full_exports += 1
         self._meshes = {}
         self._instances = {}
-        self._materials = _MaterialTable(self.warnings)
+        self._materials = MaterialTable(self.warnings)
         self._light_rows = None
         self._walk(depsgraph, None, None)
         self._world = export_world(scene.world, self.warnings)
@@ -535,7 +497,7 @@ class ViewportSession:
                            reslotted=reslotted, layout=layout)
         if len(self._materials.rows) != materials_before:
             changes["materials"] = self._materials.table()
-        signature = [_row_signature(r) for r in light_rows]
+        signature = [row_signature(r) for r in light_rows]
         if signature != self._light_rows:
             if self._light_rows is not None:
                 self.work.light_updates += 1

@@ -21,7 +21,9 @@ class Warnings:
             self.items.append(text)
 
 
-class _MaterialTable:
+class MaterialTable:
+    """Material rows keyed by the original material, row 0 the default."""
+
     def __init__(self, warn):
         self.rows = [material_row(None, warn)]
         self.index = {}
@@ -30,11 +32,30 @@ class _MaterialTable:
     def id_of(self, mat):
         if mat is None:
             return 0
-        key = mat.as_pointer()
+        key = mat.original.as_pointer()
         if key not in self.index:
             self.index[key] = len(self.rows)
             self.rows.append(material_row(mat, self.warn))
         return self.index[key]
+
+    def refresh(self, mat_original, depsgraph):
+        """Re-read one material; True if its row changed."""
+        i = self.index.get(mat_original.as_pointer())
+        if i is None:
+            return False
+        row = material_row(mat_original.evaluated_get(depsgraph), self.warn)
+        if row_signature(row) == row_signature(self.rows[i]):
+            return False
+        self.rows[i] = row
+        return True
+
+    def table(self):
+        return Materials.from_list(self.rows)
+
+
+def row_signature(row):
+    return tuple(sorted((k, tuple(np.ravel(v).tolist()) if not isinstance(v, str) else v)
+                        for k, v in row.items()))
 
 
 def _object_mesh(obj, cache):
@@ -74,7 +95,7 @@ def export_scene(depsgraph, width=None, height=None):
     bscene = depsgraph.scene
     if width is None:
         width, height = render_size(bscene)
-    materials = _MaterialTable(warn)
+    materials = MaterialTable(warn)
     cache = {}
     verts, tris, normals, uvs, mids, oids, light_rows = [], [], [], [], [], [], []
     offset = 0
