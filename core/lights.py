@@ -89,6 +89,7 @@ class LightSet:
         w_analytic = np.where(lights.kind == LIGHT_SUN, p * np.pi * self.scene_radius ** 2, p)
         w_tri = lum[self.tri_index] * self.tri_area * np.pi * (2.0 if self.two_sided else 1.0)
         self.distribution = Distribution1D(np.concatenate([w_analytic, w_tri]))
+        self._sun_constants()
         self.count = self.distribution.count if self.distribution.total > 0 else 0
 
     # --- light sampling (next-event estimation) --------------------------------
@@ -175,25 +176,32 @@ class LightSet:
         rad = np.where(outside[:, None], rad, 0.0)
         return wi, dist, rad.astype(np.float32), pdf.astype(np.float32), point
 
-    def _sample_sun(self, li, p, u):
+    def _sun_constants(self):
+        """Per-light sun quantities, computed once: axis toward the sun, its frame,
+        1 - cos(half angle) (without cancellation: the default 0.526 degree sun
+        has 1 - cos ~ 1e-5), pdf and radiance of the disk."""
         lt = self.lights
-        axis = (-lt.direction[li]).astype(np.float32)
-        half = 0.5 * lt.angle[li]
+        axis = (-lt.direction).astype(np.float32)
+        t, b = orthonormal_basis(axis) if len(axis) else (axis, axis)
+        half = 0.5 * np.asarray(lt.angle, np.float64)
+        one_minus = 2.0 * np.sin(0.5 * half) ** 2
         point = half <= 0
-        # 1 - cos(half) without cancellation: the default sun (0.526 degrees) has
-        # 1 - cos ~ 1e-5, where float32 1 - cos(half) is off by up to a percent.
-        one_minus = 2.0 * np.sin(0.5 * np.asarray(half, np.float64)) ** 2
-        cos_max = 1.0 - one_minus
-        local = square_to_uniform_cone(u, np.where(point, 1.0, cos_max))
-        t, b = orthonormal_basis(axis)
+        pdf = np.where(point, 1.0, 1.0 / np.maximum(2.0 * np.pi * one_minus, 1e-30))
+        radiance = np.where(point[:, None], lt.power,
+                            lt.power / np.maximum(np.pi * np.sin(half) ** 2, 1e-30)[:, None])
+        self._sun = (axis, t, b, one_minus, point, pdf.astype(np.float32), radiance.astype(np.float32))
+
+    def _sample_sun(self, li, p, u):
+        axis, t, b, one_minus, point, pdf, radiance = (a[li] for a in self._sun)
+        # Uniform in the cone: 1 - cos(theta) = u0 (1 - cos_max), kept in float64.
+        om = u[:, 0].astype(np.float64) * one_minus
+        cos_t = 1.0 - om
+        sin_t = np.sqrt(np.maximum(om * (2.0 - om), 0.0))
+        phi = 2.0 * np.pi * u[:, 1]
+        local = np.stack([sin_t * np.cos(phi), sin_t * np.sin(phi), cos_t], axis=1).astype(np.float32)
         wi = np.where(point[:, None], axis, to_world(local, t, b, axis)).astype(np.float32)
-        solid = 2.0 * np.pi * one_minus
-        sin2 = np.sin(half) ** 2
-        radiance = lt.power[li] / np.maximum(np.pi * sin2, 1e-30)[:, None]
-        rad = np.where(point[:, None], lt.power[li], radiance)
-        pdf = np.where(point, 1.0, 1.0 / np.maximum(solid, 1e-30))
         dist = np.full(len(li), INF_DIST, np.float32)
-        return wi, dist, rad.astype(np.float32), pdf.astype(np.float32), np.ones(len(li), bool)
+        return wi, dist, radiance, pdf, np.ones(len(li), bool)
 
     def _area_point(self, li, u):
         lt = self.lights
