@@ -138,8 +138,7 @@ class ReSTIRGI:
         self.history = FrameHistory(
             width=gb.width, height=gb.height, camera=scene.camera, p=gb.p, n=gb.n,
             ng=gb.ng, depth=gb.depth, valid=gb.valid, object_id=gb.object_id,
-            object_keys=list(getattr(scene, "object_keys", []) or []),
-            object_matrices=np.asarray(getattr(scene, "object_matrices", np.zeros((0, 4, 4)))),
+            object_keys=list(scene.object_keys), object_matrices=np.asarray(scene.object_matrices),
             signature=_signature(scene), temporal=temporal, spatial=spatial)
         self.frames += 1
         found = float((prev_pix[gb.index] >= 0).mean()) if len(gb.index) else 0.0

@@ -93,7 +93,7 @@ def initial_samples(ctx, gb, seed, frame, sample, max_bounces, sampling=COSINE, 
     rows = np.nonzero(ok)[0]
     o = offset_origins(surf.p[rows], surf.ng[rows], wi[rows], ctx.eps)
     hits = ctx.accel.intersect_closest(o, wi[rows])
-    # ... plus what the sample ray finds: analytic lights, the world, emitters.
+    # ... plus the emitters the sample ray finds (analytic lights, emissive triangles).
     d[rows] += weight[rows] * ctx.lights.emitted_along(o, wi[rows], hits.t, pdf_bsdf=pdf[rows])
     surf2, hit_idx = surface_hits(scene, o, wi[rows], hits)
     rows2 = rows[hit_idx]
@@ -128,5 +128,4 @@ def initial_samples(ctx, gb, seed, frame, sample, max_bounces, sampling=COSINE, 
     w = np.where(p_hat > 0, p_hat / pdf[rows2], 0.0).astype(np.float32)
     res.w_sum[pix] = w
     res.M[index] = 1.0          # every pixel with a visible point drew one candidate
-    res.W[pix] = np.where(p_hat > 0, 1.0 / pdf[rows2], 0.0)
     return res, direct

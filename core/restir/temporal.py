@@ -41,9 +41,8 @@ class FrameHistory:
 def _motion(scene, history, object_id):
     """Per-pixel 4x4 matrices taking current positions to last frame's, from the
     objects' transforms (identity where an object is new or did not move)."""
-    keys = getattr(scene, "object_keys", None)
-    mats = getattr(scene, "object_matrices", None)
-    if not keys or mats is None or not history.object_keys:
+    keys, mats = scene.object_keys, scene.object_matrices
+    if not keys or not history.object_keys:
         return None
     prev_index = {k: i for i, k in enumerate(history.object_keys)}
     o = len(keys)
