@@ -32,7 +32,10 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "tests"))
+sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 from bench_common import OUT, ROOT, load_addon  # noqa: E402
+from blender_util import Recorder  # noqa: E402
 
 BLEND = ROOT / "example_blends" / "room_indirect.blend"
 TARGET_EDIT_S = 0.3     # issue 4: transform edit to next frame at 1/4 scale
@@ -134,20 +137,6 @@ def part_accel(n_tris, n_rays, lines):
 
 
 # ------------------------------------------------------------------ part 2: viewport
-
-class Recorder:
-    def __init__(self):
-        self.items = []
-
-    def __call__(self, _scene, depsgraph):
-        for u in depsgraph.updates:
-            self.items.append((u.id.original, u.is_updated_transform, u.is_updated_geometry,
-                               u.is_updated_shading))
-
-    def take(self):
-        items, self.items = self.items, []
-        return items
-
 
 def make_edits(bpy, session, rng):
     """name -> function applying one edit of that kind through bpy or set_view."""

@@ -107,3 +107,31 @@ def compare_with_cycles(scene, samples, bounces, block=8):
             "ours_mean": float(o_mean.mean()), "cycles_mean": float(c_mean.mean()),
             "ratio": float(o_mean.mean() / c_mean.mean()),
             "chi": float(((o_mean - c_mean) ** 2).sum() / var.sum())}
+
+
+class Recorder:
+    """What a depsgraph_update_post handler sees, as the tuples sync takes."""
+
+    def __init__(self):
+        self.items = []
+
+    def __call__(self, _scene, depsgraph):
+        for u in depsgraph.updates:
+            self.items.append((u.id.original, u.is_updated_transform, u.is_updated_geometry,
+                               u.is_updated_shading))
+
+    def edit(self, change):
+        """Apply change(), let the depsgraph evaluate, return the updates seen."""
+        import bpy
+        handlers = bpy.app.handlers.depsgraph_update_post
+        if self not in handlers:        # loading a file drops the handlers
+            handlers.append(self)
+        self.items = []
+        change()
+        bpy.context.view_layer.update()
+        return self.take()
+
+    def take(self):
+        """The updates seen since the last call."""
+        items, self.items = self.items, []
+        return items

@@ -17,6 +17,8 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
+from blender_util import Recorder
+
 W, H = 48, 32
 
 
@@ -92,30 +94,6 @@ def build_scene():
     del floor
     bpy.context.view_layer.update()
     return scene
-
-
-class Recorder:
-    """What a depsgraph_update_post handler sees, as the tuples sync takes."""
-
-    def __init__(self):
-        self.items = []
-
-    def __call__(self, _scene, depsgraph):
-        for u in depsgraph.updates:
-            self.items.append((u.id.original, u.is_updated_transform, u.is_updated_geometry,
-                               u.is_updated_shading))
-
-    def edit(self, change):
-        """Apply change(), let the depsgraph evaluate, return the updates seen."""
-        import bpy
-        handlers = bpy.app.handlers.depsgraph_update_post
-        if self not in handlers:        # loading a file drops the handlers
-            handlers.append(self)
-        self.items = []
-        change()
-        bpy.context.view_layer.update()
-        items, self.items = self.items, []
-        return items
 
 
 @pytest.fixture
