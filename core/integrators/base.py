@@ -44,6 +44,10 @@ class ShadingFrame:
         return ShadingFrame(bsdf.bsdf_params(scene.materials, surf.material), t, b,
                             to_local(surf.wo, t, b, surf.ns))
 
+    def subset(self, index):
+        return ShadingFrame(self.params.subset(index), self.t[index], self.b[index],
+                            self.wo_local[index])
+
     def local(self, surf, w):
         return to_local(w, self.t, self.b, surf.ns)
 

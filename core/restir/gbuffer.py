@@ -16,6 +16,7 @@ class GBuffer:
     """One visible point per pixel; rows of misses hold zeros and valid False."""
     valid: np.ndarray       # (P,) bool
     surf: SurfaceHits       # the valid rows only, in pixel order
+    frame: ShadingFrame     # BSDF parameters and shading frames of those rows
     index: np.ndarray       # (V,) pixel index of each valid row
     depth: np.ndarray       # (P,) view depth, 1e10 on misses
     object_id: np.ndarray   # (P,) int32, -1 on misses
@@ -64,10 +65,10 @@ def trace_gbuffer(ctx, seed, frame, pixel_filter, jitter=True):
     depth = np.full(n, 1e10, np.float32)
     object_id = np.full(n, -1, np.int32)
     albedo = np.zeros((n, 3), np.float32)
+    frame = ShadingFrame.at(scene, surf)
     if len(idx):
         emission[idx] += ctx.lights.triangle_emission(surf.prim, surf.front)
         depth[idx] = view_depth(scene.camera, surf.p)
         object_id[idx] = scene.object_ids[surf.prim]
-        params = ShadingFrame.at(scene, surf).params
-        albedo[idx] = np.clip(params.diffuse + params.f0, 0.0, 1.0)
-    return GBuffer(valid, surf, idx, depth, object_id, emission, albedo, w, h)
+        albedo[idx] = np.clip(frame.params.diffuse + frame.params.f0, 0.0, 1.0)
+    return GBuffer(valid, surf, frame, idx, depth, object_id, emission, albedo, w, h)

@@ -13,7 +13,7 @@ import numpy as np
 
 from .. import bsdf, samplers
 from ..accel import offset_origins
-from ..integrators.base import ShadingFrame, direct_light
+from ..integrators.base import direct_light
 from ..integrators.path import radiance_from_surface
 from ..interaction import surface_hits
 from ..reservoirs import Reservoirs, target
@@ -56,7 +56,7 @@ def initial_samples(ctx, gb, seed, frame, sample, max_bounces, sampling=COSINE, 
     if len(index) == 0:
         return res, direct
     seeds = samplers.path_seeds(seed, frame, index, sample)
-    frame_sh = ShadingFrame.at(scene, surf)
+    frame_sh = gb.frame
     params, wo_l = frame_sh.params, frame_sh.wo_local
 
     # Direction: hemisphere warp, or the BSDF for glossy materials.
@@ -83,7 +83,7 @@ def initial_samples(ctx, gb, seed, frame, sample, max_bounces, sampling=COSINE, 
         k = light_samples - 1
         rep = np.tile(np.arange(len(index)), k)
         surf_k = surf.subset(rep)
-        frame_k = ShadingFrame.at(scene, surf_k)
+        frame_k = frame_sh.subset(rep)
         seeds_k = samplers.hash_keys(np.repeat(np.arange(1, k + 1), len(index)), seeds[rep])
         params_k, wo_k = frame_k.params, frame_k.wo_local
         strategy_k = lambda w_l: _source_pdf(params_k, wo_k, w_l, sampling)  # noqa: E731

@@ -7,7 +7,6 @@ sample point and one visibility ray (unless the spatial pass already traced it).
 import numpy as np
 
 from .. import bsdf
-from ..integrators.base import ShadingFrame
 from ..sampling import dot
 
 
@@ -24,7 +23,7 @@ def shade_indirect(ctx, gb, res, visible_own=None):
     to = y.x2 - surf.p
     dist = np.sqrt(np.maximum(dot(to, to), 1e-30))
     wi = (to / dist[:, None]).astype(np.float32)
-    frame = ShadingFrame.at(ctx.scene, surf)
+    frame = gb.frame
     wi_l = frame.local(surf, wi)
     f = bsdf.evaluate(frame.params, frame.wo_local, wi_l)
     cos = np.maximum(wi_l[:, 2], 0.0)
