@@ -250,7 +250,7 @@ def main():
     ap.add_argument("--scales", nargs="+", default=["HALF", "QUARTER"])
     ap.add_argument("--mode", default="RESTIR_BIASED")
     ap.add_argument("--bounces", type=int, default=4)
-    ap.add_argument("--light-samples", type=int, default=4)
+    ap.add_argument("--light-samples", type=int, default=16)
     ap.add_argument("--frames", type=int, default=3, help="steady frames timed per scale")
     ap.add_argument("--repeats", type=int, default=2, help="edits of each kind per measure")
     ap.add_argument("--big-triangles", type=int, default=1_000_000)

@@ -65,3 +65,28 @@ def uniform2(seeds, dim):
 
 def bounce_dim(bounce, offset):
     return DIM_BOUNCE_BASE + bounce * DIMS_PER_BOUNCE + offset
+
+
+def radical_inverse(k, base):
+    """Van der Corput radical inverse of integers k (array) in ``base``, float64 in [0, 1)."""
+    k = np.asarray(k, np.int64).copy()
+    out = np.zeros(k.shape, np.float64)
+    scale = 1.0 / base
+    while (k > 0).any():
+        out += (k % base) * scale
+        k //= base
+        scale /= base
+    return out
+
+
+def stratified_light_uniforms(k, count, shift_select, shift_uv):
+    """Uniforms for sample k of ``count`` light samples at one point, spread so
+    that the count samples cover light selection (k / count) and the light's
+    surface (Halton bases 2 and 3) evenly, each set randomly rotated (toroidal
+    shift) so every single sample is still uniform: averages stay unbiased.
+    Returns (u_select (N,), u (N, 2)) float32 in [0, 1)."""
+    top = np.float32(0.99999994)
+    u_sel = np.mod(k / np.maximum(count, 1) + shift_select, 1.0)
+    pattern = np.stack([radical_inverse(k, 2), radical_inverse(k, 3)], axis=1)
+    u = np.mod(pattern + shift_uv, 1.0)
+    return (np.minimum(u_sel, top).astype(np.float32), np.minimum(u, top).astype(np.float32))

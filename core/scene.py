@@ -6,7 +6,8 @@ brightness: light power in watts, sun strength as irradiance (W/m^2), emission
 strength and world strength as radiance.
 """
 
-from dataclasses import dataclass, field
+import hashlib
+from dataclasses import dataclass, field, fields
 
 import numpy as np
 
@@ -168,6 +169,21 @@ class Scene:
         """Diagonal of the bounding box (at least 1e-3), used for ray offsets."""
         lo, hi = self.bounds()
         return max(float(np.linalg.norm(hi - lo)), 1e-3)
+
+    def lighting_key(self):
+        """A digest of everything that decides the light leaving a surface point
+        (geometry, materials, lights, world), but not the camera or the image:
+        equal keys mean a path traced again with the same seed gives the same
+        radiance."""
+        h = hashlib.sha1()   # a change detector, not a security measure; SHA-NI makes it fast
+        arrays = [self.vertices, self.triangles, self.normals, self.material_ids, self.world_color]
+        arrays += [getattr(self.materials, f.name) for f in fields(Materials) if f.name != "names"]
+        arrays += [getattr(self.lights, f.name) for f in fields(Lights) if f.name != "names"]
+        for a in arrays:
+            a = np.ascontiguousarray(a)
+            h.update(str((a.dtype.str, a.shape)).encode())
+            h.update(a.data)
+        return h.digest()
 
 
 def make_scene(vertices, triangles, material_ids=None, materials=None, lights=None,

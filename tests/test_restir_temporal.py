@@ -293,3 +293,28 @@ def test09_temporal_M_is_capped(mode):
         ctx.close()
     assert max(top) <= cap + samples, top
     assert top[-1] == cap + samples, top
+
+
+def test10_validation_is_skipped_while_nothing_changes():
+    """Re-tracing stored paths in an unchanged scene cannot change them, so
+    validation only runs after the lighting changed (here: once, after the
+    light is switched off), and it runs by the next interval."""
+    scene = sharp(cornell_box("area", 12, 12))
+    settings = ReSTIRSettings(seed=3, validation_interval=2, max_bounces=2)
+    restir = ReSTIRGI()
+    ctx = RenderContext.build(scene)
+    try:
+        for f in range(7):
+            restir.render_frame(ctx, settings, f)
+        assert restir.validations == 0
+    finally:
+        ctx.close()
+    ctx = RenderContext.build(lights_off(scene))
+    try:
+        restir.render_frame(ctx, settings, 7)          # frame count 7: not a validation frame
+        assert restir.validations == 0
+        for f in range(8, 14):
+            restir.render_frame(ctx, settings, f)
+        assert restir.validations == 1
+    finally:
+        ctx.close()

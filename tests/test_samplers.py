@@ -156,3 +156,30 @@ def test09_mix64_is_a_bijection_on_a_sample():
         diff = samplers.mix64(x) ^ samplers.mix64(x ^ np.uint64(1 << bit))
         flips = np.unpackbits(diff.view(np.uint8)).reshape(len(x), 64).sum(axis=1)
         assert 30 < flips.mean() < 34
+
+
+def test10_radical_inverse():
+    k = np.arange(6)
+    assert np.allclose(samplers.radical_inverse(k, 2), [0, 1 / 2, 1 / 4, 3 / 4, 1 / 8, 5 / 8])
+    assert np.allclose(samplers.radical_inverse(k, 3), [0, 1 / 3, 2 / 3, 1 / 9, 4 / 9, 7 / 9])
+
+
+@pytest.mark.parametrize("count", [1, 5, 16])
+def test11_stratified_light_uniforms(count):
+    """Every sample of a stratified set is uniform on its own (so averages stay
+    unbiased), and one set covers the selection axis in equal strata."""
+    n_sets = 20000
+    k = np.tile(np.arange(count), n_sets)
+    seeds = _seeds()[: n_sets * count]
+    s_sel = np.repeat(samplers.uniform(seeds[:n_sets], 1), count)
+    s_uv = np.repeat(samplers.uniform2(seeds[:n_sets], 2), count, axis=0)
+    u_sel, u = samplers.stratified_light_uniforms(k, np.full(len(k), count), s_sel, s_uv)
+    assert u_sel.dtype == u.dtype == np.float32
+    assert (u_sel >= 0).all() and (u_sel < 1).all() and (u >= 0).all() and (u < 1).all()
+    for j in range(count):                     # sample j of every set: uniform
+        rows = slice(j, None, count)
+        assert _uniformity_p(u_sel[rows]) > 1e-3
+        assert _pair_p(u[rows, 0], u[rows, 1]) > 1e-3
+    one_set = np.sort(u_sel[:count].astype(np.float64))
+    gaps = np.diff(np.concatenate([one_set, [one_set[0] + 1.0]]))
+    assert np.allclose(gaps, 1.0 / count, atol=1e-6)

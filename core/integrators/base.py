@@ -55,7 +55,7 @@ class ShadingFrame:
         return to_world(w_local, self.t, self.b, surf.ns).astype(np.float32)
 
 
-def direct_light(ctx, surf, frame, seeds, bounce, mis=True, strategy_pdf=None):
+def direct_light(ctx, surf, frame, seeds, bounce, mis=True, strategy_pdf=None, u_light=None):
     """Next-event estimation at surface hits: one light sample and one shadow ray each.
 
     Returns the reflected radiance toward wo, (N, 3). With ``mis`` the sample is
@@ -63,13 +63,17 @@ def direct_light(ctx, surf, frame, seeds, bounce, mis=True, strategy_pdf=None):
     last vertex, whose BSDF ray is never traced) it has weight one.
     strategy_pdf(wi_local) gives the pdf of the direction sampler it is weighted
     against, when that is not the BSDF's own (ReSTIR's uniform initial samples).
+    u_light: (u_select, u) to use instead of the seeds' own light dimensions.
     """
     n = len(surf)
     out = np.zeros((n, 3), np.float32)
     if n == 0 or ctx.lights.count == 0:
         return out
-    u_sel = samplers.uniform(seeds, samplers.bounce_dim(bounce, samplers.D_LIGHT_SELECT))
-    u = samplers.uniform2(seeds, samplers.bounce_dim(bounce, samplers.D_LIGHT_UV))
+    if u_light is None:
+        u_sel = samplers.uniform(seeds, samplers.bounce_dim(bounce, samplers.D_LIGHT_SELECT))
+        u = samplers.uniform2(seeds, samplers.bounce_dim(bounce, samplers.D_LIGHT_UV))
+    else:
+        u_sel, u = u_light
     ls = ctx.lights.sample(surf.p, u_sel, u)
     wi_local = frame.local(surf, ls.wi)
     f = bsdf.evaluate(frame.params, frame.wo_local, wi_local)

@@ -13,6 +13,7 @@ import numpy as np
 
 from .. import samplers
 from ..camera import PixelFilter
+from .adaptive_direct import light_sample_counts, reprojected_hold, update_noise_hold
 from ..reservoirs import finalize, merge
 from .gbuffer import trace_gbuffer
 from .initial import COSINE, initial_samples
@@ -41,7 +42,8 @@ class ReSTIRSettings:
     spatial_neighbors: int = 4
     spatial_radius: float = 16.0    # pixels
     validation_interval: int = 4    # frames; 0 turns validation off
-    light_samples: int = 4          # NEE samples for the direct light of each visible point
+    light_samples: int = 16         # shadow rays for the direct light of visible points in
+                                    # penumbrae (one elsewhere: adaptive_direct.py)
 
 
 @dataclass
@@ -62,12 +64,14 @@ class ReSTIRGI:
     """Reservoirs and the previous frame: the temporal state of one image stream."""
 
     def __init__(self):
-        self.history = None
-        self.frames = 0
+        self.reset()
 
     def reset(self):
         self.history = None
         self.frames = 0
+        self.validations = 0        # sample validations run (skipped while nothing changed)
+        self._lighting_key = None   # Scene.lighting_key of the last frame
+        self._stale = False         # the lighting changed since the last validation
 
     @property
     def nbytes(self):
@@ -75,7 +79,7 @@ class ReSTIRGI:
         if h is None:
             return 0
         return h.temporal.nbytes + h.spatial.nbytes + sum(
-            a.nbytes for a in (h.p, h.n, h.ng, h.depth, h.valid, h.object_id))
+            a.nbytes for a in (h.p, h.n, h.ng, h.depth, h.valid, h.object_id, h.noise_hold))
 
     def render_frame(self, ctx, settings, frame):
         scene = ctx.scene
@@ -88,24 +92,35 @@ class ReSTIRGI:
         pix = np.arange(n, dtype=np.int64)
         seeds = samplers.path_seeds(settings.seed, frame, pix, 0x5EED)
 
+        history = self.history
+        prev_pix = reproject(scene, gb, history) if settings.temporal else np.full(n, -1, np.int64)
+        hold = reprojected_hold(prev_pix, history.noise_hold) if history is not None else None
+        counts = light_sample_counts(gb.index, prev_pix, hold, settings.light_samples)
+
         # Initial samples (several per pixel are streamed into one reservoir).
         initial, direct = initial_samples(ctx, gb, settings.seed, frame, 0, settings.max_bounces,
-                                          settings.initial_sampling, settings.light_samples)
+                                          settings.initial_sampling, counts)
         for s in range(1, max(1, settings.samples)):
             extra, d = initial_samples(ctx, gb, settings.seed, frame, s, settings.max_bounces,
-                                       settings.initial_sampling, settings.light_samples)
+                                       settings.initial_sampling, counts)
             merge(initial, extra, extra.w_sum, extra.M, samplers.uniform(seeds, 10 + s))
             direct += d
         direct /= max(1, settings.samples)
         finalize(initial, target_at(initial, gb.p, gb.ng, gb.n))
 
-        history = self.history
-        if history is not None and settings.validation_interval > 0 \
-                and self.frames % settings.validation_interval == 0:
-            validate(ctx, history.temporal, settings.max_bounces)
-            validate(ctx, history.spatial, settings.max_bounces)
+        # Stored samples are re-traced only if the lighting changed since the
+        # last validation: in an unchanged scene a re-traced path (same seed)
+        # gives exactly its stored radiance.
+        if settings.validation_interval > 0:
+            key = scene.lighting_key()
+            self._stale |= self._lighting_key is not None and key != self._lighting_key
+            self._lighting_key = key
+            if history is not None and self._stale and self.frames % settings.validation_interval == 0:
+                validate(ctx, history.temporal, settings.max_bounces)
+                validate(ctx, history.spatial, settings.max_bounces)
+                self.validations += 1
+                self._stale = False
 
-        prev_pix = reproject(scene, gb, history) if settings.temporal else np.full(n, -1, np.int64)
         temporal = temporal_resample(initial, gb, history, prev_pix, samplers.uniform(seeds, 5),
                                      settings.temporal_M_cap, settings.max_age, biased)
 
@@ -139,7 +154,8 @@ class ReSTIRGI:
             width=gb.width, height=gb.height, camera=scene.camera, p=gb.p, n=gb.n,
             ng=gb.ng, depth=gb.depth, valid=gb.valid, object_id=gb.object_id,
             object_keys=list(scene.object_keys), object_matrices=np.asarray(scene.object_matrices),
-            signature=_signature(scene), temporal=temporal, spatial=spatial)
+            signature=_signature(scene), temporal=temporal, spatial=spatial,
+            noise_hold=update_noise_hold(direct, gb.valid, gb.width, gb.height, hold))
         self.frames += 1
         found = float((prev_pix[gb.index] >= 0).mean()) if len(gb.index) else 0.0
         return FrameResult(color, direct_total, indirect, gb.depth, gb.n, gb.albedo,

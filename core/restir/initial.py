@@ -47,7 +47,8 @@ def initial_samples(ctx, gb, seed, frame, sample, max_bounces, sampling=COSINE, 
     """Reservoirs (one per pixel, empty where nothing was hit) holding each
     pixel's new sample, and the direct light of each pixel (P, 3), estimated
     with ``light_samples`` NEE samples averaged (each keeps its one-sample MIS
-    weight, so with the sample ray's own weight they still sum to one)."""
+    weight, so with the sample ray's own weight they still sum to one).
+    light_samples: one count for all, or one per visible point (gb.index order)."""
     scene = ctx.scene
     n_pix = len(gb.valid)
     res = Reservoirs.empty(n_pix)
@@ -76,19 +77,26 @@ def initial_samples(ctx, gb, seed, frame, sample, max_bounces, sampling=COSINE, 
         weight = f * (cos / np.where(pdf > 0, pdf, 1.0))[:, None]
     weight = np.where(ok[:, None] & np.isfinite(weight), weight, 0.0).astype(np.float32)
 
-    # Direct light: NEE weighted against this very sampler ...
-    strategy = lambda w_l: _source_pdf(params, wo_l, w_l, sampling)  # noqa: E731
-    d = direct_light(ctx, surf, frame_sh, seeds, 0, mis=True, strategy_pdf=strategy)
-    if light_samples > 1:   # more shadow rays, in one batch: direct light is not resampled
-        k = light_samples - 1
-        rep = np.tile(np.arange(len(index)), k)
-        surf_k = surf.subset(rep)
-        frame_k = frame_sh.subset(rep)
-        seeds_k = samplers.hash_keys(np.repeat(np.arange(1, k + 1), len(index)), seeds[rep])
+    # Direct light: NEE weighted against this very sampler, with light_samples
+    # per point spread evenly over light choice and light surfaces (stratified),
+    # all in one batch ...
+    counts = np.broadcast_to(np.maximum(np.asarray(light_samples, np.int64), 1), (len(index),))
+    if (counts == 1).all():
+        d = direct_light(ctx, surf, frame_sh, seeds, 0, mis=True,
+                         strategy_pdf=lambda w_l: _source_pdf(params, wo_l, w_l, sampling))
+    else:
+        rep = np.repeat(np.arange(len(index)), counts)
+        k = np.arange(len(rep)) - np.repeat(np.cumsum(counts) - counts, counts)
+        s_sel = samplers.uniform(seeds, samplers.bounce_dim(0, samplers.D_LIGHT_SELECT))[rep]
+        s_uv = samplers.uniform2(seeds, samplers.bounce_dim(0, samplers.D_LIGHT_UV))[rep]
+        u_light = samplers.stratified_light_uniforms(k, counts[rep], s_sel, s_uv)
+        surf_k, frame_k = surf.subset(rep), frame_sh.subset(rep)
         params_k, wo_k = frame_k.params, frame_k.wo_local
-        strategy_k = lambda w_l: _source_pdf(params_k, wo_k, w_l, sampling)  # noqa: E731
-        more = direct_light(ctx, surf_k, frame_k, seeds_k, 0, mis=True, strategy_pdf=strategy_k)
-        d = (d + more.reshape(k, len(index), 3).sum(axis=0)) / light_samples
+        each = direct_light(ctx, surf_k, frame_k, seeds[rep], 0, mis=True, u_light=u_light,
+                            strategy_pdf=lambda w_l: _source_pdf(params_k, wo_k, w_l, sampling))
+        d = np.stack([np.bincount(rep, weights=each[:, c], minlength=len(index)) for c in range(3)],
+                     axis=1)
+        d = (d / counts[:, None]).astype(np.float32)
 
     rows = np.nonzero(ok)[0]
     o = offset_origins(surf.p[rows], surf.ng[rows], wi[rows], ctx.eps)

@@ -36,6 +36,7 @@ class FrameHistory:
     signature: tuple        # resolution and scene sizes the reservoirs refer to
     temporal: Reservoirs
     spatial: Reservoirs
+    noise_hold: np.ndarray = None   # (P,) int8 frames left of "direct light noisy" (adaptive_direct)
 
 
 def _motion(scene, history, object_id):

@@ -1,0 +1,113 @@
+"""Adaptive, stratified shadow rays for the direct light of visible points
+(core/restir/adaptive_direct.py and the direct light of initial.py).
+
+- The 3x3 neighbourhood range is what a brute-force loop gives.
+- Shadow edges are flagged, flat lit and flat dark regions are not; a flag
+  holds for HOLD_FRAMES frames; counts follow flags and missing history.
+- Many stratified light samples estimate the same direct light as one sample
+  (z-test over seeds) with far less variance than as many independent ones.
+"""
+
+import numpy as np
+import pytest
+
+from core import RenderContext
+from core.camera import PixelFilter
+from core.restir.adaptive_direct import (HOLD_FRAMES, light_sample_counts, neighbourhood_range,
+                                         reprojected_hold, update_noise_hold)
+from core.restir.gbuffer import trace_gbuffer
+from core.restir.initial import initial_samples
+from core.sampling import luminance
+from scenes import cornell_box
+
+
+def test01_neighbourhood_range_matches_brute_force():
+    rng = np.random.default_rng(3)
+    w, h = 7, 5
+    values = rng.random(w * h).astype(np.float32)
+    valid = rng.random(w * h) > 0.3
+    mx, mn = neighbourhood_range(values, valid, w, h)
+    img, ok = values.reshape(h, w), valid.reshape(h, w)
+    for y in range(h):
+        for x in range(w):
+            win = img[max(y - 1, 0):y + 2, max(x - 1, 0):x + 2][ok[max(y - 1, 0):y + 2, max(x - 1, 0):x + 2]]
+            assert mx[y * w + x] == (win.max() if len(win) else -np.inf)
+            assert mn[y * w + x] == (win.min() if len(win) else np.inf)
+
+
+def test02_shadow_edges_are_flagged_and_held():
+    w, h = 12, 6
+    direct = np.zeros((w * h, 3), np.float32)
+    lit = (np.arange(w * h) % w) < 6                      # left half lit, right half in shadow
+    direct[lit] = 2.0
+    direct[lit] *= 1.0 + 0.05 * np.arange(w * h)[lit, None] / (w * h)   # a smooth gradient
+    valid = np.ones(w * h, bool)
+    hold = update_noise_hold(direct, valid, w, h, None)
+    col = np.arange(w * h) % w
+    assert (hold[(col == 5) | (col == 6)] == HOLD_FRAMES).all()        # the edge
+    assert (hold[(col <= 3) | (col >= 8)] == 0).all()                  # flat lit, flat dark
+    # Without new triggers a flag counts down, then is gone.
+    flat = np.full((w * h, 3), 1.0, np.float32)
+    for left in range(HOLD_FRAMES - 1, -1, -1):
+        hold = update_noise_hold(flat, valid, w, h, hold)
+        assert (hold[col == 5] == left).all()
+    # Pixels without a visible point are never flagged.
+    assert (update_noise_hold(direct, np.zeros(w * h, bool), w, h, None) == 0).all()
+
+
+def test03_counts_follow_flags_and_history():
+    index = np.arange(6)
+    prev_pix = np.array([0, 1, -1, 3, 4, 5])
+    prev_hold = np.array([0, 3, 0, 0, 1, 0], np.int8)
+    hold = reprojected_hold(prev_pix, prev_hold)
+    assert list(hold) == [0, 3, 0, 0, 1, 0]
+    assert list(light_sample_counts(index, prev_pix, hold, 16)) == [1, 16, 16, 1, 16, 1]
+    assert (light_sample_counts(index, prev_pix, None, 16) == 16).all()    # first frame
+    assert (light_sample_counts(index, prev_pix, hold, 1) == 1).all()
+
+
+@pytest.fixture(scope="module")
+def box():
+    scene = cornell_box("area", 16, 16)
+    scene.filter_width = 0.0
+    ctx = RenderContext.build(scene)
+    yield ctx, trace_gbuffer(ctx, 0, 0, PixelFilter(0.0), jitter=False)
+    ctx.close()
+
+
+def direct_runs(ctx, gb, counts, runs):
+    """Luminance of the direct light of every pixel over independent frames, (runs, P)."""
+    return np.stack([luminance(initial_samples(ctx, gb, 11, f, 0, 0, light_samples=counts)[1])
+                     for f in range(runs)]).astype(np.float64)
+
+
+def test04_stratified_samples_are_unbiased_and_better_than_independent(box):
+    ctx, gb = box
+    one = direct_runs(ctx, gb, 1, 1024)
+    many = direct_runs(ctx, gb, 16, 256)
+    # Same mean: image sums, z-test over the independent frames.
+    a, b = one.sum(axis=1), many.sum(axis=1)
+    z = (a.mean() - b.mean()) / np.sqrt(a.var(ddof=1) / len(a) + b.var(ddof=1) / len(b))
+    print(f"direct light: one sample {a.mean():.3f}, 16 stratified {b.mean():.3f}, z = {z:.2f}")
+    assert abs(z) < 3.3
+    # Variance per pixel: below a sixteenth of one sample's (independent
+    # samples would give exactly a sixteenth), where the box has penumbrae.
+    noisy = one.var(axis=0) > 1e-3 * one.var(axis=0).max()
+    ratio = many.var(axis=0, ddof=1)[noisy].sum() / one.var(axis=0, ddof=1)[noisy].sum()
+    print(f"variance of 16 stratified samples: {ratio:.4f} of one sample's (1/16 = {1 / 16:.4f})")
+    assert noisy.mean() > 0.2
+    assert ratio < 0.75 / 16
+
+
+def test05_counts_per_pixel_mix(box):
+    """A count per visible point: pixels with one sample get the one-sample
+    estimate of the same seeds, pixels with many the stratified one."""
+    ctx, gb = box
+    v = len(gb.index)
+    mixed = np.where(np.arange(v) % 2 == 0, 1, 8)
+    d_mixed = initial_samples(ctx, gb, 4, 0, 0, 0, light_samples=mixed)[1][gb.index]
+    d_one = initial_samples(ctx, gb, 4, 0, 0, 0, light_samples=1)[1][gb.index]
+    d_many = initial_samples(ctx, gb, 4, 0, 0, 0, light_samples=8)[1][gb.index]
+    assert np.allclose(d_mixed[mixed == 1], d_one[mixed == 1])
+    assert np.allclose(d_mixed[mixed == 8], d_many[mixed == 8])
+    assert not np.allclose(d_one, d_many)
