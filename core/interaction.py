@@ -4,6 +4,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .rows import gather
 from .sampling import dot, normalize
 
 
@@ -27,7 +28,10 @@ class SurfaceHits:
         return len(self.prim)
 
     def subset(self, mask_or_index):
-        return SurfaceHits(*(getattr(self, f)[mask_or_index] for f in self.__dataclass_fields__))
+        index = np.asarray(mask_or_index)
+        if index.dtype == bool:
+            index = np.nonzero(index)[0]
+        return SurfaceHits(*(gather(getattr(self, f), index) for f in self.__dataclass_fields__))
 
 
 def surface_hits(scene, origins, directions, hits, mask=None):
@@ -37,18 +41,18 @@ def surface_hits(scene, origins, directions, hits, mask=None):
     b1 = hits.u[idx][:, None]
     b2 = hits.v[idx][:, None]
     b0 = 1.0 - b1 - b2
-    tri = scene.triangles[prim]
-    p0, p1, p2 = (scene.vertices[tri[:, k]] for k in range(3))
-    d = directions[idx]
+    tri = gather(scene.triangles, prim)
+    p0, p1, p2 = (gather(scene.vertices, tri[:, k]) for k in range(3))
+    d = gather(directions, idx)
     # The hit point from the barycentrics is more precise than o + t d far away.
     p = (b0 * p0 + b1 * p1 + b2 * p2).astype(np.float32)
     fn = scene.face_normals
-    ng = fn[prim] if fn is not None else normalize(np.cross(p1 - p0, p2 - p0)).astype(np.float32)
-    n = scene.normals[prim]
+    ng = gather(fn, prim) if fn is not None else normalize(np.cross(p1 - p0, p2 - p0)).astype(np.float32)
+    n = gather(scene.normals, prim)
     ns = normalize(b0 * n[:, 0] + b1 * n[:, 1] + b2 * n[:, 2]).astype(np.float32)
     bad_ns = ~(dot(ns, ns) > 0.5)
     ns = np.where(bad_ns[:, None], ng, ns)
-    uvs = scene.uvs[prim]
+    uvs = gather(scene.uvs, prim)
     uv = (b0 * uvs[:, 0] + b1 * uvs[:, 1] + b2 * uvs[:, 2]).astype(np.float32)
     wo = (-d).astype(np.float32)
     front = dot(ng, wo) >= 0
@@ -56,4 +60,4 @@ def surface_hits(scene, origins, directions, hits, mask=None):
     ng = ng * sign
     ns = ns * np.where(dot(ns, ng) >= 0, 1.0, -1.0).astype(np.float32)[:, None]
     return SurfaceHits(p=p, ng=ng, ns=ns, uv=uv, wo=wo, prim=prim.astype(np.int32),
-                       material=scene.material_ids[prim], front=front), idx
+                       material=np.take(scene.material_ids, prim), front=front), idx
