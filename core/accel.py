@@ -13,6 +13,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .rows import rows_finite, scale
+
 _SPLIT_MIN = 16384          # below this a batch is traced on the calling thread
 _FAR = np.float32(1e30)
 
@@ -46,7 +48,7 @@ def _prepare(origins, directions, tmax):
     # Non-finite input must never reach Embree: such rays are traced as harmless
     # stand-ins (which can still touch geometry through the origin at t = 0) and
     # their results are discarded by the callers through ``bad``.
-    bad = ~(np.isfinite(o).all(axis=1) & np.isfinite(d).all(axis=1) & (dist > 0))
+    bad = ~(rows_finite(o) & rows_finite(d) & (dist > 0))
     if bad.any():
         o = np.where(bad[:, None], 0.0, o).astype(np.float32)
         d = np.where(bad[:, None], np.float32([0, 0, 1]), d).astype(np.float32)
@@ -137,5 +139,6 @@ class Accel:
 def offset_origins(p, ng, direction, eps):
     """Move points off their surface along the geometric normal, to the side the
     ray leaves from (Embree's tnear is 0, so this avoids self-intersection)."""
-    side = np.where(np.einsum("ij,ij->i", ng, direction) >= 0, eps, -eps).astype(np.float32)
-    return (p + ng * side[:, None]).astype(np.float32)
+    dn = ng[:, 0] * direction[:, 0] + ng[:, 1] * direction[:, 1] + ng[:, 2] * direction[:, 2]
+    side = np.where(dn >= 0, eps, -eps).astype(np.float32)
+    return (p + scale(ng, side)).astype(np.float32)

@@ -14,6 +14,7 @@ from dataclasses import dataclass, fields
 
 import numpy as np
 
+from .rows import gather, scatter
 from .sampling import luminance
 
 
@@ -67,12 +68,12 @@ class Reservoirs:
 
     def take(self, index):
         """Rows gathered by an index array (a copy)."""
-        return Reservoirs(**{f.name: getattr(self, f.name)[index] for f in fields(self)})
+        return Reservoirs(**{f.name: gather(getattr(self, f.name), index) for f in fields(self)})
 
     def view(self, index):
         """SampleView of rows gathered by an index array."""
-        return SampleView(self.x2[index], self.ng2[index], self.lo[index], self.prim2[index],
-                          self.W[index], self.M[index])
+        return SampleView(gather(self.x2, index), gather(self.ng2, index), gather(self.lo, index),
+                          np.take(self.prim2, index), np.take(self.W, index), np.take(self.M, index))
 
     def copy(self):
         return Reservoirs(**{f.name: getattr(self, f.name).copy() for f in fields(self)})
@@ -129,7 +130,7 @@ def merge(dst, src, weight, M_src, u, index=None):
     if len(rows):
         src_rows = rows if index is None else index[rows]
         for name in Reservoirs.SAMPLE_FIELDS:
-            getattr(dst, name)[rows] = getattr(src, name)[src_rows]
+            scatter(getattr(dst, name), rows, gather(getattr(src, name), src_rows))
     return take
 
 

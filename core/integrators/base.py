@@ -8,6 +8,7 @@ import numpy as np
 from .. import bsdf, samplers
 from ..accel import Accel, offset_origins
 from ..lights import INF_DIST, LightSet
+from ..rows import gather, row_max, rows_finite, scale, scatter
 from ..sampling import dot, orthonormal_basis, power_heuristic, to_local, to_world
 
 RAY_EPS_RELATIVE = 1e-5     # origin offset relative to the scene's extent
@@ -45,8 +46,8 @@ class ShadingFrame:
                             to_local(surf.wo, t, b, surf.ns))
 
     def subset(self, index):
-        return ShadingFrame(self.params.subset(index), self.t[index], self.b[index],
-                            self.wo_local[index])
+        return ShadingFrame(self.params.subset(index), gather(self.t, index), gather(self.b, index),
+                            gather(self.wo_local, index))
 
     def local(self, surf, w):
         return to_local(w, self.t, self.b, surf.ns)
@@ -86,14 +87,15 @@ def direct_light(ctx, surf, frame, seeds, bounce, mis=True, strategy_pdf=None, u
     else:
         w = np.ones(n, np.float32)
     with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
-        contrib = f * ls.radiance * (cos * w / np.where(ls.pdf > 0, ls.pdf, 1.0))[:, None]
-    live = above & (ls.pdf > 0) & (contrib.max(axis=1) > 0) & np.isfinite(contrib).all(axis=1)
+        contrib = scale(f * ls.radiance, cos * w / np.where(ls.pdf > 0, ls.pdf, 1.0))
+    live = above & (ls.pdf > 0) & (row_max(contrib) > 0) & rows_finite(contrib)
     rows = np.nonzero(live)[0]
     if len(rows) == 0:
         return out
-    blocked = ctx.accel.occluded(*shadow_rays(ctx, surf.p[rows], surf.ng[rows], ls.wi[rows], ls.dist[rows]))
-    out[rows] = np.where(blocked[:, None], 0.0, contrib[rows])
-    return out
+    blocked = ctx.accel.occluded(*shadow_rays(ctx, gather(surf.p, rows), gather(surf.ng, rows),
+                                              gather(ls.wi, rows), ls.dist[rows]))
+    lit = rows[~blocked]
+    return scatter(out, lit, gather(contrib, lit))
 
 
 def shadow_rays(ctx, p, ng, wi, dist):
@@ -109,7 +111,7 @@ def shadow_rays(ctx, p, ng, wi, dist):
     target = p + wi * np.where(finite, dist, 0.0)[:, None]
     d = target - o
     length = np.sqrt(dot(d, d))
-    d = np.where((finite & (length > 0))[:, None], d / np.maximum(length, 1e-30)[:, None], wi)
+    d = np.where((finite & (length > 0))[:, None], scale(d, 1.0 / np.maximum(length, 1e-30)), wi)
     tmax = np.where(finite, np.maximum(length * (1.0 - 1e-4) - ctx.eps, 0.0), INF_DIST)
     return o, d.astype(np.float32), tmax.astype(np.float32)
 
@@ -126,7 +128,7 @@ def sample_continuation(ctx, surf, frame, seeds, bounce):
     cos = np.maximum(wi_local[:, 2], 0.0)
     valid = (pdf > 0) & (dot(wi, surf.ng) > 0)
     with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
-        weight = f * (cos / np.where(pdf > 0, pdf, 1.0))[:, None]
-    valid &= np.isfinite(weight).all(axis=1) & (weight.max(axis=1) > 0)
-    weight = np.where(valid[:, None], weight, 0.0).astype(np.float32)
+        weight = scale(f, cos / np.where(pdf > 0, pdf, 1.0))
+    valid &= rows_finite(weight) & (row_max(weight) > 0)
+    weight = scale(np.nan_to_num(weight, copy=False), valid.astype(np.float32)).astype(np.float32)
     return wi, weight, pdf, valid

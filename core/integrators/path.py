@@ -18,6 +18,7 @@ from .. import samplers
 from ..accel import offset_origins
 from ..camera import generate_rays, view_depth
 from ..interaction import surface_hits
+from ..rows import gather, row_max, scale, scatter_add
 from ..sampling import luminance, power_heuristic
 from .base import ShadingFrame, direct_light, sample_continuation
 
@@ -41,32 +42,35 @@ def radiance_from_surface(ctx, surf, seeds, bounce0, max_bounces):
             break
         s = seeds[alive]
         frame = ShadingFrame.at(scene, surf)
-        L[alive] += beta * direct_light(ctx, surf, frame, s, bounce)
+        scatter_add(L, alive, beta * direct_light(ctx, surf, frame, s, bounce))
         wi, weight, pdf, valid = sample_continuation(ctx, surf, frame, s, bounce)
         beta = beta * weight
         if bounce >= RR_START_BOUNCE:
-            q = np.clip(1.0 - beta.max(axis=1), 0.0, 0.95)
+            q = np.clip(1.0 - row_max(beta), 0.0, 0.95)
             u_rr = samplers.uniform(s, samplers.bounce_dim(bounce, samplers.D_RR))
             valid &= u_rr >= q
-            beta = beta / np.maximum(1.0 - q, 1e-6)[:, None]
+            beta = scale(beta, 1.0 / np.maximum(1.0 - q, 1e-6))
         keep = np.nonzero(valid)[0]
-        alive, beta, wi, pdf = alive[keep], beta[keep], wi[keep], pdf[keep]
-        p_prev = surf.p[keep]
-        o = offset_origins(p_prev, surf.ng[keep], wi, ctx.eps)
+        alive, beta, wi, pdf = alive[keep], gather(beta, keep), gather(wi, keep), pdf[keep]
+        p_prev = gather(surf.p, keep)
+        o = offset_origins(p_prev, gather(surf.ng, keep), wi, ctx.eps)
         hits = ctx.accel.intersect_closest(o, wi)
         # Emission found by the BSDF rays, each weighted against NEE.
-        L[alive] += beta * ctx.lights.emitted_along(o, wi, hits.t, pdf_bsdf=pdf)
-        miss = ~hits.hit
-        if miss.any():
-            L[alive[miss]] += beta[miss] * scene.world_color
+        if ctx.lights.n_analytic:
+            scatter_add(L, alive, beta * ctx.lights.emitted_along(o, wi, hits.t, pdf_bsdf=pdf))
+        miss = np.nonzero(~hits.hit)[0]
+        if len(miss) and scene.world_color.max() > 0:
+            scatter_add(L, alive[miss], gather(beta, miss) * scene.world_color)
         surf, idx = surface_hits(scene, o, wi, hits)
-        alive, beta, pdf, p_prev = alive[idx], beta[idx], pdf[idx], p_prev[idx]
-        le = ctx.lights.triangle_emission(surf.prim, surf.front)
-        emissive = le.max(axis=1) > 0
-        if emissive.any():
-            pdf_l = ctx.lights.pdf_triangle(surf.prim, p_prev, surf.p, -surf.wo)
-            w = power_heuristic(pdf, pdf_l)
-            L[alive] += np.where(emissive[:, None], beta * le * w[:, None], 0.0)
+        alive, beta, pdf, p_prev = alive[idx], gather(beta, idx), pdf[idx], gather(p_prev, idx)
+        if len(ctx.lights.tri_index):
+            le = ctx.lights.triangle_emission(surf.prim, surf.front)
+            emissive = np.nonzero(row_max(le) > 0)[0]
+            if len(emissive):
+                pdf_l = ctx.lights.pdf_triangle(surf.prim[emissive], gather(p_prev, emissive),
+                                                gather(surf.p, emissive), -gather(surf.wo, emissive))
+                w = power_heuristic(pdf[emissive], pdf_l)
+                scatter_add(L, alive[emissive], scale(gather(beta, emissive) * gather(le, emissive), w))
     np.nan_to_num(L, copy=False, nan=0.0, posinf=0.0, neginf=0.0)
     return L
 

@@ -9,6 +9,7 @@ from .. import samplers
 from ..camera import generate_rays, view_depth
 from ..integrators.base import ShadingFrame
 from ..interaction import SurfaceHits, surface_hits
+from ..rows import scatter
 
 
 @dataclass
@@ -25,24 +26,21 @@ class GBuffer:
     width: int
     height: int
 
+    def _image(self, rows):
+        return scatter(np.zeros((len(self.valid), 3), np.float32), self.index, rows)
+
     @cached_property
     def p(self):
         """(P, 3) positions (zeros on misses)."""
-        out = np.zeros((len(self.valid), 3), np.float32)
-        out[self.index] = self.surf.p
-        return out
+        return self._image(self.surf.p)
 
     @cached_property
     def ng(self):
-        out = np.zeros((len(self.valid), 3), np.float32)
-        out[self.index] = self.surf.ng
-        return out
+        return self._image(self.surf.ng)
 
     @cached_property
     def n(self):
-        out = np.zeros((len(self.valid), 3), np.float32)
-        out[self.index] = self.surf.ns
-        return out
+        return self._image(self.surf.ns)
 
 
 def trace_gbuffer(ctx, seed, frame, pixel_filter, jitter=True):
@@ -67,8 +65,9 @@ def trace_gbuffer(ctx, seed, frame, pixel_filter, jitter=True):
     albedo = np.zeros((n, 3), np.float32)
     frame = ShadingFrame.at(scene, surf)
     if len(idx):
-        emission[idx] += ctx.lights.triangle_emission(surf.prim, surf.front)
+        if len(ctx.lights.tri_index):
+            emission[idx] += ctx.lights.triangle_emission(surf.prim, surf.front)
         depth[idx] = view_depth(scene.camera, surf.p)
-        object_id[idx] = scene.object_ids[surf.prim]
-        albedo[idx] = np.clip(frame.params.diffuse + frame.params.f0, 0.0, 1.0)
+        object_id[idx] = np.take(scene.object_ids, surf.prim)
+        scatter(albedo, idx, np.clip(frame.params.diffuse + frame.params.f0, 0.0, 1.0))
     return GBuffer(valid, surf, frame, idx, depth, object_id, emission, albedo, w, h)

@@ -17,6 +17,7 @@ from ..integrators.base import direct_light
 from ..integrators.path import radiance_from_surface
 from ..interaction import surface_hits
 from ..reservoirs import Reservoirs, target
+from ..rows import gather, row_max, scale, scatter, scatter_add
 from ..sampling import (cosine_hemisphere_pdf, dot, power_heuristic,
                         square_to_cosine_hemisphere, square_to_uniform_hemisphere,
                         uniform_hemisphere_pdf)
@@ -74,8 +75,9 @@ def initial_samples(ctx, gb, seed, frame, sample, max_bounces, sampling=COSINE, 
     cos = np.maximum(wi_l[:, 2], 0.0)
     ok = (pdf > 0) & (dot(wi, surf.ng) > 0)
     with np.errstate(invalid="ignore", divide="ignore"):
-        weight = f * (cos / np.where(pdf > 0, pdf, 1.0))[:, None]
-    weight = np.where(ok[:, None] & np.isfinite(weight), weight, 0.0).astype(np.float32)
+        weight = scale(f, cos / np.where(pdf > 0, pdf, 1.0))
+    weight = np.nan_to_num(weight, nan=0.0, posinf=0.0, neginf=0.0)
+    weight = scale(weight, ok.astype(np.float32)).astype(np.float32)
 
     # Direct light: NEE weighted against this very sampler, with light_samples
     # per point spread evenly over light choice and light surfaces (stratified),
@@ -99,40 +101,47 @@ def initial_samples(ctx, gb, seed, frame, sample, max_bounces, sampling=COSINE, 
         d = (d / counts[:, None]).astype(np.float32)
 
     rows = np.nonzero(ok)[0]
-    o = offset_origins(surf.p[rows], surf.ng[rows], wi[rows], ctx.eps)
-    hits = ctx.accel.intersect_closest(o, wi[rows])
+    wi_r, weight_r = gather(wi, rows), gather(weight, rows)
+    o = offset_origins(gather(surf.p, rows), gather(surf.ng, rows), wi_r, ctx.eps)
+    hits = ctx.accel.intersect_closest(o, wi_r)
     # ... plus the emitters the sample ray finds (analytic lights, emissive triangles).
-    d[rows] += weight[rows] * ctx.lights.emitted_along(o, wi[rows], hits.t, pdf_bsdf=pdf[rows])
-    surf2, hit_idx = surface_hits(scene, o, wi[rows], hits)
+    if ctx.lights.n_analytic:
+        scatter_add(d, rows, weight_r * ctx.lights.emitted_along(o, wi_r, hits.t, pdf_bsdf=pdf[rows]))
+    surf2, hit_idx = surface_hits(scene, o, wi_r, hits)
     rows2 = rows[hit_idx]
-    le = ctx.lights.triangle_emission(surf2.prim, surf2.front)
-    if (le.max(axis=1) > 0).any():
-        pdf_l = ctx.lights.pdf_triangle(surf2.prim, surf.p[rows2], surf2.p, -surf2.wo)
-        d[rows2] += weight[rows2] * le * power_heuristic(pdf[rows2], pdf_l)[:, None]
-    direct[index] = d
+    if len(ctx.lights.tri_index):
+        le = ctx.lights.triangle_emission(surf2.prim, surf2.front)
+        if (row_max(le) > 0).any():
+            pdf_l = ctx.lights.pdf_triangle(surf2.prim, gather(surf.p, rows2), surf2.p, -surf2.wo)
+            scatter_add(d, rows2, scale(gather(weight, rows2) * le, power_heuristic(pdf[rows2], pdf_l)))
+    scatter(direct, index, d)
 
     # The sample: x2 and its outgoing radiance toward x1 (its own emission is
     # direct light of x1, counted above).
     lo = radiance_from_surface(ctx, surf2, seeds[rows2], 1, max_bounces) if max_bounces >= 1 \
         else np.zeros((len(rows2), 3), np.float32)
     pix = index[rows2]
-    res.x2[pix], res.ng2[pix], res.n2[pix], res.wo2[pix] = surf2.p, surf2.ng, surf2.ns, surf2.wo
+    for name, value in (("x2", surf2.p), ("ng2", surf2.ng), ("n2", surf2.ns), ("wo2", surf2.wo),
+                        ("lo", lo)):
+        scatter(getattr(res, name), pix, value)
     res.prim2[pix], res.mat2[pix] = surf2.prim, surf2.material
-    res.lo[pix], res.pdf[pix], res.seed[pix] = lo, pdf[rows2], seeds[rows2]
+    res.pdf[pix], res.seed[pix] = pdf[rows2], seeds[rows2]
     # Rays that escaped sample the world: a far point in their direction whose
     # radiance is the world's, so sky light is resampled like any other.
     miss = rows[~hits.hit]
     if len(miss) and scene.world_color.max() > 0:
         far = world_distance(scene)
         pm = index[miss]
-        res.x2[pm] = surf.p[miss] + wi[miss] * far
-        res.ng2[pm] = res.n2[pm] = res.wo2[pm] = -wi[miss]
+        wi_m = gather(wi, miss)
+        scatter(res.x2, pm, gather(surf.p, miss) + wi_m * far)
+        for name in ("ng2", "n2", "wo2"):
+            scatter(getattr(res, name), pm, -wi_m)
         res.prim2[pm] = res.WORLD_SAMPLE
-        res.lo[pm] = scene.world_color
+        scatter(res.lo, pm, scene.world_color)
         res.pdf[pm] = pdf[miss]
         res.seed[pm] = seeds[miss]
         rows2, pix = np.concatenate([rows2, miss]), np.concatenate([pix, pm])
-    p_hat = target(res.lo[pix]) * cos[rows2]
+    p_hat = target(gather(res.lo, pix)) * cos[rows2]
     w = np.where(p_hat > 0, p_hat / pdf[rows2], 0.0).astype(np.float32)
     res.w_sum[pix] = w
     res.M[index] = 1.0          # every pixel with a visible point drew one candidate

@@ -7,6 +7,7 @@ sample point and one visibility ray (unless the spatial pass already traced it).
 import numpy as np
 
 from .. import bsdf
+from ..rows import scale, scatter
 from ..sampling import dot
 
 
@@ -19,15 +20,14 @@ def shade_indirect(ctx, gb, res, visible_own=None):
     if len(idx) == 0:
         return out
     surf = gb.surf
-    y = res.take(idx)
+    y = res.view(idx)
     to = y.x2 - surf.p
     dist = np.sqrt(np.maximum(dot(to, to), 1e-30))
-    wi = (to / dist[:, None]).astype(np.float32)
+    wi = scale(to, 1.0 / dist).astype(np.float32)
     frame = gb.frame
     wi_l = frame.local(surf, wi)
     f = bsdf.evaluate(frame.params, frame.wo_local, wi_l)
     cos = np.maximum(wi_l[:, 2], 0.0)
     vis = visible(ctx, surf.p, surf.ng, surf.ns, y) if visible_own is None else visible_own[idx]
-    contrib = f * y.lo * (cos * y.W * vis)[:, None]
-    out[idx] = np.where(np.isfinite(contrib), contrib, 0.0)
-    return out
+    contrib = scale(f * y.lo, cos * y.W * vis)
+    return scatter(out, idx, np.nan_to_num(contrib, nan=0.0, posinf=0.0, neginf=0.0))

@@ -43,9 +43,28 @@ def target_at(res, x1, ng1, ns1):
 
 def shift_weight(res, x1_owner, x1_receiver, ng_receiver, ns_receiver, biased):
     """Resampling weight p_hat_r(y) * W * M * J of reusing reservoirs at receivers."""
-    j = jacobian(x1_owner, x1_receiver, res.x2, res.ng2)
-    ok = (j >= J_MIN) & (j <= J_MAX)
+    lum_wm = np.where(res.has_sample, target(res.lo) * res.W * res.M, 0.0).astype(np.float32)
+    return shift_weight_of(res.x2, res.ng2, lum_wm, x1_owner, x1_receiver, ng_receiver,
+                           ns_receiver, biased)
+
+
+def shift_weight_of(x2, ng2, lum_wm, x1_owner, x1_receiver, ng_receiver, ns_receiver, biased):
+    """shift_weight from the sample points x2, their normals ng2 and each
+    reservoir's luminance(Lo) W M (0 without a sample): target_at and jacobian
+    in one pass over the shared terms."""
+    b = x1_receiver - x2                      # from the sample to the receiver
+    a = x1_owner - x2                         # from the sample to its owner
+    db2 = np.maximum(dot(b, b), 1e-30)
+    da2 = np.maximum(dot(a, a), 1e-30)
+    inv_db = 1.0 / np.sqrt(db2)
+    b_n2 = dot(b, ng2)                        # > 0: the receiver is in front of x2
+    cos_r = -dot(b, ns_receiver) * inv_db     # cosine at the receiver
+    facing = (dot(b, ng_receiver) < 0) & (b_n2 > 0) & (cos_r > 0)
+    with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
+        j = (b_n2 * inv_db) / (np.abs(dot(a, ng2)) / np.sqrt(da2)) * (da2 / db2)
+    ok = facing & (j >= J_MIN) & (j <= J_MAX)
     if biased:
         j = np.clip(j, *J_CLAMP)
-    w = target_at(res, x1_receiver, ng_receiver, ns_receiver) * res.W * res.M * j
-    return np.where(ok, w, 0.0).astype(np.float32)
+    with np.errstate(invalid="ignore", over="ignore"):
+        w = np.where(ok, lum_wm * cos_r * j, 0.0)
+    return w.astype(np.float32)

@@ -15,9 +15,10 @@ import numpy as np
 
 from .. import samplers
 from ..integrators.base import shadow_rays
-from ..reservoirs import Reservoirs, finalize, merge
+from ..reservoirs import Reservoirs, finalize, merge, target
+from ..rows import gather, scale
 from ..sampling import dot
-from .shift import J_MAX, J_MIN, jacobian, shift_weight, target_at
+from .shift import J_MAX, J_MIN, jacobian, shift_weight, shift_weight_of, target_at
 from .temporal import DEPTH_REL_MAX, NORMAL_COS_MIN
 
 D_SPATIAL = 1000            # first sampler dimension of the spatial pass
@@ -27,12 +28,13 @@ def visible(ctx, x1, ng1, ns1, res):
     """True where x1 sees its row's sample point (and each faces the other)."""
     n = len(x1)
     out = np.zeros(n, bool)
-    to = res.x2 - x1
-    dist = np.sqrt(np.maximum(dot(to, to), 1e-30))
-    wi = (to / dist[:, None]).astype(np.float32)
     rows = np.nonzero(target_at(res, x1, ng1, ns1) > 0)[0]
     if len(rows):
-        blocked = ctx.accel.occluded(*shadow_rays(ctx, x1[rows], ng1[rows], wi[rows], dist[rows]))
+        x1_r = gather(x1, rows)
+        to = gather(res.x2, rows) - x1_r
+        dist = np.sqrt(np.maximum(dot(to, to), 1e-30))
+        wi = scale(to, 1.0 / dist).astype(np.float32)
+        blocked = ctx.accel.occluded(*shadow_rays(ctx, x1_r, gather(ng1, rows), wi, dist))
         out[rows] = ~blocked
     return out
 
@@ -58,7 +60,11 @@ def spatial_resample(ctx, gb, temporal, prev_spatial, prev_owner_p, seeds, k, ra
         candidates.append((p, ng, nrm, pm, prev_owner_p))
 
     pix = np.arange(n)
-    px, py = pix % w, pix // w
+    px, py = (pix % w).astype(np.float32), (pix // w).astype(np.float32)
+    # Neighbours' reservoirs enter through their sample point, its normal and
+    # luminance(Lo) W M: gathered per neighbour, the rest only for the winners.
+    lum_wm = np.where(temporal.has_sample, target(temporal.lo) * temporal.W * temporal.M,
+                      0.0).astype(np.float32)
     for i in range(k):
         u = samplers.uniform2(seeds, D_SPATIAL + 2 + 3 * i)
         r = radius * np.sqrt(u[:, 0])
@@ -66,14 +72,18 @@ def spatial_resample(ctx, gb, temporal, prev_spatial, prev_owner_p, seeds, k, ra
         nx = np.clip(np.rint(px + r * np.cos(phi)), 0, w - 1).astype(np.int64)
         ny = np.clip(np.rint(py + r * np.sin(phi)), 0, h - 1).astype(np.int64)
         nb = ny * w + nx
-        ok = valid & valid[nb] & (nb != pix)
-        ok &= dot(nrm, nrm[nb]) >= NORMAL_COS_MIN
-        ok &= np.abs(gb.depth[nb] - gb.depth) <= DEPTH_REL_MAX * gb.depth
-        src = temporal.view(nb)
-        weight = np.where(ok, shift_weight(src, p[nb], p, ng, nrm, biased), 0.0)
-        m = np.where(ok, src.M, 0.0)
+        nrm_nb = gather(nrm, nb)
+        ok = valid & np.take(valid, nb) & (nb != pix)
+        ok &= dot(nrm, nrm_nb) >= NORMAL_COS_MIN
+        ok &= np.abs(np.take(gb.depth, nb) - gb.depth) <= DEPTH_REL_MAX * gb.depth
+        p_nb = gather(p, nb)
+        weight = shift_weight_of(gather(temporal.x2, nb), gather(temporal.ng2, nb), np.take(lum_wm, nb),
+                                 p_nb, p, ng, nrm, biased)
+        weight *= ok
+        m = np.where(ok, np.take(temporal.M, nb), 0.0).astype(np.float32)
         merge(res, temporal, weight, m, samplers.uniform(seeds, D_SPATIAL + 4 + 3 * i), index=nb)
-        candidates.append((p[nb], ng[nb], nrm[nb], m, p[nb]))
+        if not biased:
+            candidates.append((p_nb, gather(ng, nb), nrm_nb, m, p_nb))
 
     own_visible = None
     p_hat = target_at(res, p, ng, nrm)
