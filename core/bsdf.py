@@ -13,7 +13,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .sampling import (INV_PI, cosine_hemisphere_pdf, luminance,
+from .rows import gather, scale, scatter, scatter_add
+from .sampling import (INV_PI, cosine_hemisphere_pdf, divide_rows, dot, luminance,
                        square_to_cosine_hemisphere)
 
 ALPHA_MIN = np.float32(1e-3)
@@ -27,16 +28,24 @@ class BSDFParams:
     p_spec: np.ndarray      # (N,) probability of sampling the specular lobe
 
     def subset(self, index):
-        return BSDFParams(self.diffuse[index], self.f0[index], self.alpha[index], self.p_spec[index])
+        index = np.asarray(index)
+        if index.dtype == bool:
+            index = np.nonzero(index)[0]
+        # Row gathers by core/rows.py (a[index] is slow on (N, 3) rows).
+        return BSDFParams(gather(self.diffuse, index), gather(self.f0, index),
+                          np.take(self.alpha, index), np.take(self.p_spec, index))
 
 
 def bsdf_params(materials, material_ids):
-    """Per-hit BSDF parameters from the material table."""
-    base = materials.base_color[material_ids]
-    metallic = np.clip(materials.metallic[material_ids], 0, 1)[:, None]
-    rough = np.clip(materials.roughness[material_ids], 0, 1)
-    ior = materials.ior[material_ids]
-    level = np.maximum(materials.specular[material_ids], 0)
+    """Per-hit BSDF parameters from the material table.
+
+    Computed once per material, then gathered per hit (core/rows.py): the same
+    arithmetic, on a handful of rows instead of every hit."""
+    base = materials.base_color
+    metallic = np.clip(materials.metallic, 0, 1)[:, None]
+    rough = np.clip(materials.roughness, 0, 1)
+    ior = materials.ior
+    level = np.maximum(materials.specular, 0)
     f0_dielectric = np.minimum(((ior - 1) / (ior + 1)) ** 2 * 2.0 * level, 1.0)[:, None]
     f0 = (1 - metallic) * f0_dielectric + metallic * base
     diffuse = (1 - metallic) * (1 - f0_dielectric) * base
@@ -46,11 +55,16 @@ def bsdf_params(materials, material_ids):
     p_spec = np.where(total > 0, ws / np.where(total > 0, total, 1), 0.0)
     p_spec = np.where((ws > 0) & (wd > 0), np.clip(p_spec, 0.1, 0.9), p_spec)
     alpha = np.maximum(rough * rough, ALPHA_MIN)
-    return BSDFParams(diffuse.astype(np.float32), f0.astype(np.float32),
-                      alpha.astype(np.float32), p_spec.astype(np.float32))
+    return BSDFParams(gather(diffuse.astype(np.float32), material_ids),
+                      gather(f0.astype(np.float32), material_ids),
+                      np.take(alpha.astype(np.float32), material_ids),
+                      np.take(p_spec.astype(np.float32), material_ids))
 
 
 # --- GGX ------------------------------------------------------------------
+#
+# Per-row (N, 3) work is written column by column (core/rows.py explains why):
+# no np.cross, np.linalg.norm(axis=1), ``a * s[:, None]`` or np.where on rows.
 
 def ggx_d(h, alpha):
     # cos^2 (a2 - 1) + 1 written as sin^2 + a2 cos^2, with sin^2 from the tangential
@@ -71,37 +85,48 @@ def ggx_g1(w, alpha):
     return 1.0 / (1.0 + ggx_lambda(w, alpha))
 
 
+def _length(x, y, z):
+    """sqrt(x^2 + y^2 + z^2) of columns, summed in np.linalg.norm's order."""
+    return np.sqrt(x * x + y * y + z * z)
+
+
 def ggx_sample_visible_normal(wo, alpha, u):
     """Heitz 2018: a microfacet normal distributed as D_wo (visible normals)."""
-    vh = np.stack([alpha * wo[:, 0], alpha * wo[:, 1], wo[:, 2]], axis=1)
-    vh /= np.linalg.norm(vh, axis=1, keepdims=True)
-    lensq = vh[:, 0] ** 2 + vh[:, 1] ** 2
-    inv = np.where(lensq > 0, 1.0 / np.sqrt(np.where(lensq > 0, lensq, 1)), 0.0)
-    t1 = np.where((lensq > 0)[:, None],
-                  np.stack([-vh[:, 1] * inv, vh[:, 0] * inv, np.zeros_like(inv)], axis=1),
-                  np.float32([1, 0, 0]))
-    t2 = np.cross(vh, t1)
+    vx, vy, vz = alpha * wo[:, 0], alpha * wo[:, 1], wo[:, 2]
+    n = _length(vx, vy, vz)
+    vx, vy, vz = vx / n, vy / n, vz / n
+    lensq = vx ** 2 + vy ** 2
+    flat = ~(lensq > 0)                 # view along the normal: t1 = (1, 0, 0)
+    inv = 1.0 / np.sqrt(np.where(flat, 1, lensq))
+    t1x, t1y = -vy * inv, vx * inv      # t1 = (t1x, t1y, 0)
+    if flat.any():
+        t1x[flat], t1y[flat] = 1, 0
+    # t2 = vh x t1 with t1's zero z.
+    t2x, t2y, t2z = -(vz * t1y), vz * t1x, vx * t1y - vy * t1x
     r = np.sqrt(u[:, 0])
     phi = 2.0 * np.pi * u[:, 1]
     p1 = r * np.cos(phi)
     p2 = r * np.sin(phi)
-    s = 0.5 * (1.0 + vh[:, 2])
+    s = 0.5 * (1.0 + vz)
     p2 = (1.0 - s) * np.sqrt(np.maximum(0.0, 1.0 - p1 * p1)) + s * p2
     pz = np.sqrt(np.maximum(0.0, 1.0 - p1 * p1 - p2 * p2))
-    nh = p1[:, None] * t1 + p2[:, None] * t2 + pz[:, None] * vh
-    ne = np.stack([alpha * nh[:, 0], alpha * nh[:, 1], np.maximum(nh[:, 2], 1e-6)], axis=1)
-    return (ne / np.linalg.norm(ne, axis=1, keepdims=True)).astype(np.float32)
+    # nh = p1 t1 + p2 t2 + pz vh, then stretched back: ne = (alpha nh_x, alpha nh_y, nh_z).
+    ex = alpha * ((p1 * t1x + p2 * t2x) + pz * vx)
+    ey = alpha * ((p1 * t1y + p2 * t2y) + pz * vy)
+    ez = np.maximum(p2 * t2z + pz * vz, 1e-6)
+    n = _length(ex, ey, ez)
+    return np.stack([ex / n, ey / n, ez / n], axis=1).astype(np.float32)
 
 
 def schlick(f0, cos):
-    m = np.clip(1.0 - cos, 0.0, 1.0)[:, None]
-    return f0 + (1.0 - f0) * (m ** 5)
+    m = np.clip(1.0 - cos, 0.0, 1.0)
+    return f0 + scale(1.0 - f0, m ** 5)
 
 
 def _half(wo, wi):
     h = wo + wi
-    n = np.linalg.norm(h, axis=1, keepdims=True)
-    return h / np.where(n > 0, n, 1)
+    n = np.sqrt(dot(h, h))
+    return divide_rows(h, np.where(n > 0, n, 1).astype(n.dtype, copy=False))
 
 
 def _spec_pdf(wo, h, alpha):
@@ -110,37 +135,65 @@ def _spec_pdf(wo, h, alpha):
 
 # --- BSDF interface ---------------------------------------------------------
 
+def _p_spec(params, wo):
+    """Specular lobe selection probability; zero where wo is below the shading normal."""
+    return params.p_spec * (wo[:, 2] > 0)      # a product: np.where on rows is slow
+
+
+def _lobes(params, wo, wi, want_f, want_pdf):
+    """f(wo, wi) and/or pdf(wo, wi), sharing the specular lobe's terms.
+
+    The GGX lobe is evaluated only on the rows that have one (p_spec > 0, both
+    directions above the shading normal); rows move by core/rows.py gathers and
+    scatters, and not at all when every row has the lobe."""
+    wi_up = wi[:, 2] > 0
+    p_spec = _p_spec(params, wo)
+    f = p = None
+    if want_f:
+        f = scale(params.diffuse, wi_up * INV_PI)      # 1 / pi or 0 per row
+    if want_pdf:
+        p = ((1.0 - p_spec) * cosine_hemisphere_pdf(wi[:, 2])).astype(np.float32)
+    spec = (p_spec > 0) & wi_up
+    if not spec.any():
+        return f, p
+    every = spec.all()
+    rows = None if every else np.nonzero(spec)[0]
+
+    def take(a):
+        return a if every else (gather(a, rows) if a.ndim == 2 else np.take(a, rows))
+
+    a, o, i = take(params.alpha), take(wo), take(wi)
+    h = _half(o, i)
+    d = ggx_d(h, a)
+    lam_o = ggx_lambda(o, a)
+    if want_f:
+        g2 = 1.0 / (1.0 + lam_o + ggx_lambda(i, a))
+        fr = schlick(take(params.f0), dot(o, h))
+        den = 4.0 * np.maximum(o[:, 2] * i[:, 2], 1e-12)
+        spec_f = scale(fr, (d * g2 / den).astype(np.float32))
+        if every:
+            f += spec_f
+        else:
+            scatter_add(f, rows, spec_f)
+    if want_pdf:
+        # _spec_pdf, with G1 from the Lambda already at hand.
+        spec_p = (1.0 / (1.0 + lam_o)) * d / (4.0 * np.maximum(o[:, 2], 1e-7))
+        if every:
+            p = (p + p_spec * spec_p).astype(np.float32)
+        else:
+            p[rows] = np.take(p, rows) + np.take(p_spec, rows) * spec_p
+    return f, p
+
+
 def evaluate(params, wo, wi):
     """f(wo, wi) as (N, 3). The diffuse lobe needs only wi above the shading
     normal (as Cycles: bent smooth-shaded normals must not blacken surfaces);
     the specular lobe needs both directions above it."""
-    f = np.where((wi[:, 2] > 0)[:, None], params.diffuse * INV_PI, 0.0).astype(np.float32)
-    rows = np.nonzero((params.p_spec > 0) & (wo[:, 2] > 0) & (wi[:, 2] > 0))[0]
-    if len(rows):   # the GGX lobe, only where there is one
-        a, o, i = params.alpha[rows], wo[rows], wi[rows]
-        h = _half(o, i)
-        d = ggx_d(h, a)
-        g2 = 1.0 / (1.0 + ggx_lambda(o, a) + ggx_lambda(i, a))
-        fr = schlick(params.f0[rows], np.einsum("ij,ij->i", o, h))
-        den = 4.0 * np.maximum(o[:, 2] * i[:, 2], 1e-12)
-        f[rows] += fr * (d * g2 / den)[:, None]
-    return f
-
-
-def _p_spec(params, wo):
-    """Specular lobe selection probability; zero where wo is below the shading normal."""
-    return np.where(wo[:, 2] > 0, params.p_spec, 0.0)
+    return _lobes(params, wo, wi, True, False)[0]
 
 
 def pdf(params, wo, wi):
-    p_spec = _p_spec(params, wo)
-    p = (1.0 - p_spec) * cosine_hemisphere_pdf(wi[:, 2])
-    p = p.astype(np.float32)
-    rows = np.nonzero((p_spec > 0) & (wi[:, 2] > 0))[0]
-    if len(rows):
-        o = wo[rows]
-        p[rows] += p_spec[rows] * _spec_pdf(o, _half(o, wi[rows]), params.alpha[rows])
-    return np.where(wi[:, 2] > 0, p, 0.0).astype(np.float32)
+    return _lobes(params, wo, wi, False, True)[1]
 
 
 def sample(params, wo, u_lobe, u):
@@ -148,7 +201,11 @@ def sample(params, wo, u_lobe, u):
     wi = square_to_cosine_hemisphere(u)
     spec = u_lobe < _p_spec(params, wo)
     if spec.any():
-        h = ggx_sample_visible_normal(wo[spec], params.alpha[spec], u[spec])
-        wos = wo[spec]
-        wi[spec] = 2.0 * np.einsum("ij,ij->i", wos, h)[:, None] * h - wos
-    return wi.astype(np.float32), evaluate(params, wo, wi), pdf(params, wo, wi)
+        rows = np.nonzero(spec)[0]
+        wos = gather(wo, rows)
+        h = ggx_sample_visible_normal(wos, np.take(params.alpha, rows), gather(u, rows))
+        # Mirror wo about h: 2 (wo . h) h - wo.
+        scatter(wi, rows, scale(h, 2.0 * dot(wos, h)) - wos)
+    wi = wi.astype(np.float32, copy=False)
+    f, p = _lobes(params, wo, wi, True, True)
+    return wi, f, p

@@ -7,42 +7,70 @@ arrays: ``u`` is ``(N, 2)`` float32 in [0, 1), directions are ``(N, 3)``.
 
 import numpy as np
 
+from .rows import scale
+
 INV_PI = np.float32(1.0 / np.pi)
 INV_2PI = np.float32(0.5 / np.pi)
 INV_4PI = np.float32(0.25 / np.pi)
 
 
 # --- small vector helpers -------------------------------------------------
+#
+# Spelled for numpy's speed on (N, 3) rows (see core/rows.py): whole-array
+# products, then the three strided columns; column-by-column scaling instead
+# of ``a * s[:, None]``. The arithmetic, and so every rounding, is unchanged.
 
 def dot(a, b):
     """Row-wise dot product of (N, 3) arrays."""
-    return a[:, 0] * b[:, 0] + a[:, 1] * b[:, 1] + a[:, 2] * b[:, 2]
+    ab = a * b          # one pass over the rows, then ((x + y) + z) as before
+    return ab[:, 0] + ab[:, 1] + ab[:, 2]
+
+
+def divide_rows(a, s):
+    """a / s[:, None] for an (N, 3) array and (N,) divisors, column by column."""
+    a, s = np.asarray(a), np.asarray(s)
+    if a.ndim != 2 or s.ndim != 1 or len(a) != len(s):
+        return a / s[:, None]
+    out = np.empty(a.shape, np.result_type(a.dtype, s.dtype))
+    for k in range(a.shape[1]):
+        np.divide(a[:, k], s, out=out[:, k])
+    return out
 
 
 def normalize(v):
     """Row-wise normalisation; zero vectors stay zero instead of turning NaN."""
     n = np.sqrt(dot(v, v))
-    return v / np.where(n > 0, n, 1).astype(v.dtype)[:, None]
+    return divide_rows(v, np.where(n > 0, n, 1).astype(v.dtype, copy=False))
 
 
 def luminance(rgb):
     """Rec.709 luminance of (..., 3) linear RGB (Blender's default working space)."""
-    return rgb @ np.array([0.2126, 0.7152, 0.0722], dtype=np.float32)
+    # Column sums rather than a matrix product: BLAS stalls on a loaded machine.
+    rgb = np.asarray(rgb)
+    return (np.float32(0.2126) * rgb[..., 0] + np.float32(0.7152) * rgb[..., 1]
+            + np.float32(0.0722) * rgb[..., 2])
 
 
 def orthonormal_basis(n):
     """Tangent and bitangent for unit normals n (Duff et al. 2017, branchless)."""
-    sign = np.where(n[:, 2] >= 0, 1.0, -1.0).astype(np.float32)
-    a = -1.0 / (sign + n[:, 2])
-    b = n[:, 0] * n[:, 1] * a
-    t = np.stack([1.0 + sign * n[:, 0] ** 2 * a, sign * b, -sign * n[:, 0]], axis=1)
-    bt = np.stack([b, sign + n[:, 1] ** 2 * a, -n[:, 1]], axis=1)
-    return t.astype(np.float32), bt.astype(np.float32)
+    n0, n1, n2 = n[:, 0], n[:, 1], n[:, 2]
+    sign = np.where(n2 >= 0, np.float32(1), np.float32(-1))
+    a = -1.0 / (sign + n2)
+    b = n0 * n1 * a
+    t = np.stack([1.0 + sign * n0 ** 2 * a, sign * b, -sign * n0], axis=1)
+    bt = np.stack([b, sign + n1 ** 2 * a, -n1], axis=1)
+    return t.astype(np.float32, copy=False), bt.astype(np.float32, copy=False)
 
 
 def to_world(local, t, b, n):
     """Local (x along t, y along b, z along n) to world directions."""
-    return local[:, 0:1] * t + local[:, 1:2] * b + local[:, 2:3] * n
+    if not (t.shape == b.shape == n.shape == local.shape and local.ndim == 2
+            and local.dtype == t.dtype == b.dtype == n.dtype):
+        return local[:, 0:1] * t + local[:, 1:2] * b + local[:, 2:3] * n
+    out = scale(t, local[:, 0])     # core/rows.py: column-wise, same sums in the same order
+    out += scale(b, local[:, 1])
+    out += scale(n, local[:, 2])
+    return out
 
 
 def to_local(w, t, b, n):
@@ -51,45 +79,59 @@ def to_local(w, t, b, n):
 
 # --- disks, hemispheres, spheres, cones -----------------------------------
 
-def square_to_concentric_disk(u):
-    """Shirley-Chiu concentric map: uniform on the unit disk, low distortion."""
+def _pick(mask, a, b):
+    """np.where(mask, a, b) for finite a and b, as a sum of products: np.where
+    with an unpredictable mask is several times slower (core/rows.py)."""
+    return a * mask + b * ~mask
+
+
+def _concentric(u):
+    """Columns (x, y) of the Shirley-Chiu concentric map (float32)."""
     a = 2.0 * u[:, 0] - 1.0
     b = 2.0 * u[:, 1] - 1.0
     use_a = np.abs(a) > np.abs(b)
-    r = np.where(use_a, a, b)
-    safe_a = np.where(a == 0, 1.0, a)
-    safe_b = np.where(b == 0, 1.0, b)
-    phi = np.where(use_a, (np.pi / 4) * (b / safe_a), (np.pi / 2) - (np.pi / 4) * (a / safe_b))
-    phi = np.where((a == 0) & (b == 0), 0.0, phi)
-    return np.stack([r * np.cos(phi), r * np.sin(phi)], axis=1).astype(np.float32)
+    r = _pick(use_a, a, b)              # the larger of |a|, |b|, signed; 0 only at the centre
+    centre = r == 0
+    q = _pick(use_a, b, a) / (np.where(centre, 1, r) if centre.any() else r)
+    phi = (np.pi / 4) * q               # b / a, or a / b on the other wedges
+    phi = _pick(use_a, phi, (np.pi / 2) - phi)
+    if centre.any():
+        phi[centre] = 0.0
+    return (r * np.cos(phi)).astype(np.float32, copy=False), (r * np.sin(phi)).astype(np.float32, copy=False)
+
+
+def square_to_concentric_disk(u):
+    """Shirley-Chiu concentric map: uniform on the unit disk, low distortion."""
+    return np.stack(_concentric(u), axis=1)
 
 
 def square_to_cosine_hemisphere(u):
-    d = square_to_concentric_disk(u)
-    z = np.sqrt(np.maximum(0.0, 1.0 - d[:, 0] ** 2 - d[:, 1] ** 2))
-    return np.concatenate([d, z[:, None]], axis=1).astype(np.float32)
+    x, y = _concentric(u)
+    z = np.sqrt(np.maximum(0.0, 1.0 - x ** 2 - y ** 2))
+    return np.stack([x, y, z.astype(np.float32, copy=False)], axis=1)
 
 
 def cosine_hemisphere_pdf(cos_theta):
-    return np.where(cos_theta > 0, cos_theta * INV_PI, 0.0).astype(np.float32)
+    # max(cos, 0) / pi; fmax also maps NaN to 0, as np.where(cos > 0, ...) did, but faster.
+    return (np.fmax(cos_theta, 0.0) * INV_PI).astype(np.float32, copy=False)
 
 
 def square_to_uniform_hemisphere(u):
     z = u[:, 0]
     r = np.sqrt(np.maximum(0.0, 1.0 - z * z))
     phi = 2.0 * np.pi * u[:, 1]
-    return np.stack([r * np.cos(phi), r * np.sin(phi), z], axis=1).astype(np.float32)
+    return np.stack([r * np.cos(phi), r * np.sin(phi), z], axis=1).astype(np.float32, copy=False)
 
 
 def uniform_hemisphere_pdf(cos_theta):
-    return np.where(cos_theta > 0, INV_2PI, 0.0).astype(np.float32)
+    return ((cos_theta > 0) * INV_2PI).astype(np.float32, copy=False)
 
 
 def square_to_uniform_sphere(u):
     z = 1.0 - 2.0 * u[:, 0]
     r = np.sqrt(np.maximum(0.0, 1.0 - z * z))
     phi = 2.0 * np.pi * u[:, 1]
-    return np.stack([r * np.cos(phi), r * np.sin(phi), z], axis=1).astype(np.float32)
+    return np.stack([r * np.cos(phi), r * np.sin(phi), z], axis=1).astype(np.float32, copy=False)
 
 
 def uniform_sphere_pdf(n):
@@ -101,7 +143,7 @@ def square_to_uniform_cone(u, cos_max):
     cos_theta = (1.0 - u[:, 0]) + u[:, 0] * cos_max
     sin_theta = np.sqrt(np.maximum(0.0, 1.0 - cos_theta * cos_theta))
     phi = 2.0 * np.pi * u[:, 1]
-    return np.stack([sin_theta * np.cos(phi), sin_theta * np.sin(phi), cos_theta], axis=1).astype(np.float32)
+    return np.stack([sin_theta * np.cos(phi), sin_theta * np.sin(phi), cos_theta], axis=1).astype(np.float32, copy=False)
 
 
 def uniform_cone_pdf(cos_max):
@@ -112,8 +154,8 @@ def square_to_uniform_triangle(u):
     """Barycentrics (b1, b2) uniform over a triangle (Heitz 2019 low-distortion map)."""
     u0, u1 = u[:, 0], u[:, 1]
     low = u0 < u1
-    b0 = np.where(low, u0 / 2, u0 - u1 / 2)
-    b1 = np.where(low, u1 - u0 / 2, u1 / 2)
+    b0 = _pick(low, u0 / 2, u0 - u1 / 2)
+    b1 = _pick(low, u1 - u0 / 2, u1 / 2)
     return b0.astype(np.float32), b1.astype(np.float32)
 
 
@@ -122,11 +164,11 @@ def square_to_uniform_triangle(u):
 def power_heuristic(pdf_a, pdf_b):
     """Weight of strategy a against b (beta = 2); zero where pdf_a vanishes.
     Written as 1 / (1 + (b / a)^2) so huge pdfs (sharp lobes) cannot overflow."""
+    pdf_a = np.asarray(pdf_a, np.float64)
     with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
-        r = np.asarray(pdf_b, np.float64) / np.asarray(pdf_a, np.float64)
+        r = np.asarray(pdf_b, np.float64) / pdf_a
         w = 1.0 / (1.0 + r * r)
-    w = np.where(np.asarray(pdf_a) > 0, w, 0.0)
-    return np.where(np.isfinite(w), w, 0.0).astype(np.float32)
+    return np.where((pdf_a > 0) & np.isfinite(w), w, 0.0).astype(np.float32)
 
 
 def area_to_solid_angle(pdf_area, dist2, cos_at_light):
