@@ -8,6 +8,8 @@ y = 0 at the bottom row, as Blender's render result stores it.
 
 import numpy as np
 
+from .rows import matmul3
+
 from .sampling import Distribution1D
 
 
@@ -51,13 +53,13 @@ def generate_rays(camera, width, height, pixel_xy):
     n = len(pixel_xy)
     if camera.projection == "ORTHO":
         local_o = np.stack([x, y, np.full(n, -camera.clip_start)], axis=1)
-        origins = pos + local_o @ axes.T
+        origins = pos + matmul3(local_o, axes.T)
         d = np.broadcast_to(-axes[:, 2], (n, 3))
         tmax = np.full(n, camera.clip_end - camera.clip_start)
     else:
         local_d = np.stack([x, y, -np.ones(n)], axis=1)
-        length = np.linalg.norm(local_d, axis=1)
-        d = (local_d / length[:, None]) @ axes.T
+        length = np.sqrt(x * x + y * y + 1.0)
+        d = matmul3(local_d, axes.T) / length[:, None]
         origins = pos + d * (camera.clip_start * length)[:, None]
         tmax = (camera.clip_end - camera.clip_start) * length
     return (origins.astype(np.float32), np.ascontiguousarray(d, dtype=np.float32),
@@ -69,7 +71,7 @@ def project(camera, width, height, points):
     Points behind a perspective camera get depth <= 0."""
     size, view = pixel_size(camera, width, height)
     pos, axes = _frame(camera)
-    local = (np.asarray(points, np.float64) - pos) @ axes
+    local = matmul3(np.asarray(points, np.float64) - pos, axes)
     depth = -local[:, 2]
     if camera.projection == "ORTHO":
         px, py = local[:, 0], local[:, 1]
@@ -84,7 +86,7 @@ def project(camera, width, height, points):
 def view_depth(camera, points):
     """Distance along the camera's view axis (Blender's Z/Depth pass)."""
     pos, axes = _frame(camera)
-    return (-(np.asarray(points, np.float64) - pos) @ axes[:, 2]).astype(np.float32)
+    return -matmul3(np.asarray(points, np.float64) - pos, axes[:, 2]).astype(np.float32)
 
 
 class PixelFilter:

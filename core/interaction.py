@@ -4,7 +4,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .rows import gather
+from .rows import gather, scale
 from .sampling import dot, normalize
 
 
@@ -38,26 +38,26 @@ def surface_hits(scene, origins, directions, hits, mask=None):
     """Build SurfaceHits for the rays that hit (or the subset ``mask`` of them)."""
     idx = np.nonzero(hits.hit if mask is None else mask)[0]
     prim = hits.prim[idx]
-    b1 = hits.u[idx][:, None]
-    b2 = hits.v[idx][:, None]
+    b1 = hits.u[idx]
+    b2 = hits.v[idx]
     b0 = 1.0 - b1 - b2
     tri = gather(scene.triangles, prim)
     p0, p1, p2 = (gather(scene.vertices, tri[:, k]) for k in range(3))
-    d = gather(directions, idx)
     # The hit point from the barycentrics is more precise than o + t d far away.
-    p = (b0 * p0 + b1 * p1 + b2 * p2).astype(np.float32)
+    # (Weighted sums column by column: core/rows.py.)
+    p = (scale(p0, b0) + scale(p1, b1) + scale(p2, b2)).astype(np.float32)
     fn = scene.face_normals
     ng = gather(fn, prim) if fn is not None else normalize(np.cross(p1 - p0, p2 - p0)).astype(np.float32)
     n = gather(scene.normals, prim)
-    ns = normalize(b0 * n[:, 0] + b1 * n[:, 1] + b2 * n[:, 2]).astype(np.float32)
+    ns = normalize(scale(n[:, 0], b0) + scale(n[:, 1], b1) + scale(n[:, 2], b2)).astype(np.float32)
     bad_ns = ~(dot(ns, ns) > 0.5)
-    ns = np.where(bad_ns[:, None], ng, ns)
+    if bad_ns.any():
+        ns[bad_ns] = ng[bad_ns]
     uvs = gather(scene.uvs, prim)
-    uv = (b0 * uvs[:, 0] + b1 * uvs[:, 1] + b2 * uvs[:, 2]).astype(np.float32)
-    wo = (-d).astype(np.float32)
+    uv = (scale(uvs[:, 0], b0) + scale(uvs[:, 1], b1) + scale(uvs[:, 2], b2)).astype(np.float32)
+    wo = -gather(directions, idx).astype(np.float32)
     front = dot(ng, wo) >= 0
-    sign = np.where(front, 1.0, -1.0).astype(np.float32)[:, None]
-    ng = ng * sign
-    ns = ns * np.where(dot(ns, ng) >= 0, 1.0, -1.0).astype(np.float32)[:, None]
+    ng = scale(ng, np.where(front, np.float32(1), np.float32(-1)))
+    ns = scale(ns, np.where(dot(ns, ng) >= 0, np.float32(1), np.float32(-1)))
     return SurfaceHits(p=p, ng=ng, ns=ns, uv=uv, wo=wo, prim=prim.astype(np.int32),
                        material=np.take(scene.material_ids, prim), front=front), idx

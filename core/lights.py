@@ -22,7 +22,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .rows import gather, rows_finite, scale, scatter, scatter_add
+from .rows import gather, matmul3, rows_finite, scale, scatter, scatter_add
 from .sampling import (Distribution1D, divide_rows, dot, luminance, orthonormal_basis,
                        power_heuristic, square_to_concentric_disk, square_to_uniform_cone,
                        square_to_uniform_triangle, to_world)
@@ -426,14 +426,14 @@ class LightSet:
             pmf = self.distribution.pmf[li]
             if kind == LIGHT_AREA:
                 nrm = lt.direction[li]
-                den = d @ nrm
-                t = ((lt.position[li] - o) @ nrm) / np.where(den != 0, den, 1)
+                den = matmul3(d, nrm)
+                t = matmul3(lt.position[li] - o, nrm) / np.where(den != 0, den, 1)
                 hit = (den < 0) & (t > 0) & (t < tmax)
                 if not hit.any():
                     continue
                 q = o + _times_rows(d, t) - lt.position[li]
-                x = (q @ lt.axis_u[li]) / lt.size_u[li]
-                y = (q @ lt.axis_v[li]) / lt.size_v[li]
+                x = matmul3(q, lt.axis_u[li]) / lt.size_u[li]
+                y = matmul3(q, lt.axis_v[li]) / lt.size_v[li]
                 inside = (x * x + y * y <= 0.25) if self.ellipse[li] else ((np.abs(x) <= 0.5) & (np.abs(y) <= 0.5))
                 hit &= inside
                 rows = np.nonzero(hit)[0]

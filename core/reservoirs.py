@@ -153,3 +153,27 @@ def cap_history(res, cap):
         res.w_sum *= scale
         res.M *= scale
     return res
+
+
+def choose(weights, u):
+    """Weighted reservoir sampling of C candidates per row in one step: the same
+    choice as C streamed merges (candidate c with probability w_c / sum w),
+    with the sample fields then gathered once instead of at every merge.
+
+    weights: list of C (N,) non-negative resampling weights; u: (N,) uniforms.
+    Returns (choice (N,) int, -1 where every weight is zero; w_sum (N,)).
+    """
+    clean = [np.where(np.isfinite(w) & (w > 0), w, 0.0).astype(np.float32) for w in weights]
+    w_sum = np.zeros(len(u), np.float32)
+    for w in clean:
+        w_sum += w
+    threshold = u * w_sum
+    choice = np.zeros(len(u), np.int64)
+    last = np.full(len(u), -1, np.int64)        # last candidate with weight, for rounding at the top
+    acc = np.zeros(len(u), np.float32)
+    for c, w in enumerate(clean):
+        acc += w
+        choice += acc <= threshold
+        last[w > 0] = c
+    choice = np.where(choice >= len(clean), last, choice)
+    return np.where(w_sum > 0, choice, -1), w_sum

@@ -56,3 +56,15 @@ def scale(a, s):
     for k in range(a.shape[1]):
         np.multiply(a[:, k], s, out=out[:, k])
     return out
+
+
+def matmul3(a, m):
+    """a @ m for (N, 3) rows and a 3x3 (or 3-vector) m, as column sums.
+
+    numpy hands ``@`` to BLAS, whose threads stall for tens of milliseconds on
+    a loaded machine; three columns of multiply-adds never do."""
+    m = np.asarray(m)
+    if m.ndim == 1:
+        return a[:, 0] * m[0] + a[:, 1] * m[1] + a[:, 2] * m[2]
+    return np.stack([a[:, 0] * m[0, j] + a[:, 1] * m[1, j] + a[:, 2] * m[2, j]
+                     for j in range(m.shape[1])], axis=1)

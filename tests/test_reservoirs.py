@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from chi2 import pooled_chi2
-from core.reservoirs import Reservoirs, cap_history, finalize, merge, target
+from core.reservoirs import Reservoirs, cap_history, choose, finalize, merge, target
 
 ALPHA = 1e-3
 
@@ -227,3 +227,24 @@ def test12_ris_variance_falls_with_M(rng):
     """More candidates, less variance (down to that of sampling p_hat exactly)."""
     v = [ris(M, 40_000, rng).var() for M in (1, 4, 16)]
     assert v[1] < 0.5 * v[0] and v[2] < 0.8 * v[1] and v[2] < 0.25 * v[0], v
+
+
+def test13_choose_selects_in_proportion_to_weight(rng):
+    """One-step selection among C candidates: frequencies follow w / sum w
+    (chi-square), zero, negative and non-finite weights never win, rows
+    without any weight choose nothing, and w_sum is the sum of clean weights."""
+    n = 200_000
+    w = np.array([0.5, 0.0, 2.0, 1.5, np.nan, -1.0], np.float32)
+    weights = [np.full(n, x, np.float32) for x in w]
+    choice, w_sum = choose(weights, rng.random(n, dtype=np.float32))
+    clean = np.where(np.isfinite(w) & (w > 0), w, 0)
+    counts = np.bincount(choice, minlength=len(w))
+    assert counts[[1, 4, 5]].sum() == 0
+    p, *_ = pooled_chi2(counts[clean > 0], n * clean[clean > 0] / clean.sum())
+    assert p > 1e-3
+    assert np.allclose(w_sum, clean.sum())
+    # At the top of the range (u just below one) the last weighted candidate wins.
+    top = choose(weights, np.full(n, 0.99999994, np.float32))[0]
+    assert (top == 3).all()
+    none = choose([np.zeros(4, np.float32), np.zeros(4, np.float32)], np.full(4, 0.5, np.float32))[0]
+    assert (none == -1).all()

@@ -18,19 +18,20 @@ from .. import samplers
 from ..accel import offset_origins
 from ..camera import generate_rays, view_depth
 from ..interaction import surface_hits
-from ..rows import gather, row_max, scale, scatter_add
+from ..rows import gather, row_max, scale, scatter, scatter_add
 from ..sampling import luminance, power_heuristic
 from .base import ShadingFrame, direct_light, sample_continuation
 
 RR_START_BOUNCE = 3
 
 
-def radiance_from_surface(ctx, surf, seeds, bounce0, max_bounces):
+def radiance_from_surface(ctx, surf, seeds, bounce0, max_bounces, frame=None):
     """Radiance reflected at ``surf`` toward ``surf.wo`` (its own emission excluded).
 
     bounce0 is the bounce index of ``surf`` (0 for camera hits). Every vertex up
     to bounce ``max_bounces`` gets NEE and a BSDF ray, both weighted by MIS; the
-    BSDF ray of the last vertex only collects emission. Returns (N, 3) float32.
+    BSDF ray of the last vertex only collects emission. ``frame``: the
+    ShadingFrame of ``surf`` if the caller has it. Returns (N, 3) float32.
     """
     scene = ctx.scene
     n = len(surf)
@@ -41,7 +42,8 @@ def radiance_from_surface(ctx, surf, seeds, bounce0, max_bounces):
         if len(alive) == 0:
             break
         s = seeds[alive]
-        frame = ShadingFrame.at(scene, surf)
+        if frame is None:
+            frame = ShadingFrame.at(scene, surf)
         scatter_add(L, alive, beta * direct_light(ctx, surf, frame, s, bounce))
         wi, weight, pdf, valid = sample_continuation(ctx, surf, frame, s, bounce)
         beta = beta * weight
@@ -62,6 +64,7 @@ def radiance_from_surface(ctx, surf, seeds, bounce0, max_bounces):
         if len(miss) and scene.world_color.max() > 0:
             scatter_add(L, alive[miss], gather(beta, miss) * scene.world_color)
         surf, idx = surface_hits(scene, o, wi, hits)
+        frame = None
         alive, beta, pdf, p_prev = alive[idx], gather(beta, idx), pdf[idx], gather(p_prev, idx)
         if len(ctx.lights.tri_index):
             le = ctx.lights.triangle_emission(surf.prim, surf.front)
@@ -102,12 +105,14 @@ def camera_pass(ctx, width, height, seed, frame, sample, max_bounces, pixel_filt
     albedo = np.zeros((n, 3), np.float32)
     surf, idx = surface_hits(scene, o, d, hits)
     if len(idx):
-        color[idx] += ctx.lights.triangle_emission(surf.prim, surf.front)
-        color[idx] += radiance_from_surface(ctx, surf, seeds[idx], 0, max_bounces)
+        shading = ShadingFrame.at(scene, surf)
+        light = radiance_from_surface(ctx, surf, seeds[idx], 0, max_bounces, shading)
+        if len(ctx.lights.tri_index):
+            light += ctx.lights.triangle_emission(surf.prim, surf.front)
+        scatter_add(color, idx, light)
         depth[idx] = view_depth(scene.camera, surf.p)
-        normal[idx] = surf.ns
-        frame = ShadingFrame.at(scene, surf)
-        albedo[idx] = np.clip(frame.params.diffuse + frame.params.f0, 0.0, 1.0)
+        scatter(normal, idx, surf.ns)
+        scatter(albedo, idx, np.clip(shading.params.diffuse + shading.params.f0, 0.0, 1.0))
     np.nan_to_num(color, copy=False, nan=0.0, posinf=0.0, neginf=0.0)
     return PassResult(color, depth, normal, albedo)
 

@@ -83,22 +83,25 @@ def initial_samples(ctx, gb, seed, frame, sample, max_bounces, sampling=COSINE, 
     # per point spread evenly over light choice and light surfaces (stratified),
     # all in one batch ...
     counts = np.broadcast_to(np.maximum(np.asarray(light_samples, np.int64), 1), (len(index),))
-    if (counts == 1).all():
-        d = direct_light(ctx, surf, frame_sh, seeds, 0, mis=True,
-                         strategy_pdf=lambda w_l: _source_pdf(params, wo_l, w_l, sampling))
-    else:
-        rep = np.repeat(np.arange(len(index)), counts)
-        k = np.arange(len(rep)) - np.repeat(np.cumsum(counts) - counts, counts)
-        s_sel = samplers.uniform(seeds, samplers.bounce_dim(0, samplers.D_LIGHT_SELECT))[rep]
-        s_uv = samplers.uniform2(seeds, samplers.bounce_dim(0, samplers.D_LIGHT_UV))[rep]
+    d = direct_light(ctx, surf, frame_sh, seeds, 0, mis=True,
+                     strategy_pdf=lambda w_l: _source_pdf(params, wo_l, w_l, sampling))
+    extra = counts - 1
+    if extra.any():
+        # Samples k = 1 .. count - 1 of the points that take more; sample 0 is
+        # the one above (the stratified pattern starts at the origin, so its
+        # first point is exactly the seeds' own uniforms).
+        rep = np.repeat(np.arange(len(index)), extra)
+        k = np.arange(len(rep)) - np.repeat(np.cumsum(extra) - extra, extra) + 1
+        s_sel = samplers.uniform(seeds[rep], samplers.bounce_dim(0, samplers.D_LIGHT_SELECT))
+        s_uv = samplers.uniform2(seeds[rep], samplers.bounce_dim(0, samplers.D_LIGHT_UV))
         u_light = samplers.stratified_light_uniforms(k, counts[rep], s_sel, s_uv)
         surf_k, frame_k = surf.subset(rep), frame_sh.subset(rep)
         params_k, wo_k = frame_k.params, frame_k.wo_local
-        each = direct_light(ctx, surf_k, frame_k, seeds[rep], 0, mis=True, u_light=u_light,
+        more = direct_light(ctx, surf_k, frame_k, seeds[rep], 0, mis=True, u_light=u_light,
                             strategy_pdf=lambda w_l: _source_pdf(params_k, wo_k, w_l, sampling))
-        d = np.stack([np.bincount(rep, weights=each[:, c], minlength=len(index)) for c in range(3)],
-                     axis=1)
-        d = (d / counts[:, None]).astype(np.float32)
+        for c in range(3):
+            d[:, c] += np.bincount(rep, weights=more[:, c], minlength=len(index)).astype(np.float32)
+        d = scale(d, 1.0 / counts.astype(np.float32))
 
     rows = np.nonzero(ok)[0]
     wi_r, weight_r = gather(wi, rows), gather(weight, rows)

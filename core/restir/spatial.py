@@ -15,8 +15,8 @@ import numpy as np
 
 from .. import samplers
 from ..integrators.base import shadow_rays
-from ..reservoirs import Reservoirs, finalize, merge, target
-from ..rows import gather, scale
+from ..reservoirs import Reservoirs, choose, finalize, target
+from ..rows import gather, scale, scatter
 from ..sampling import dot
 from .shift import J_MAX, J_MIN, jacobian, shift_weight, shift_weight_of, target_at
 from .temporal import DEPTH_REL_MAX, NORMAL_COS_MIN
@@ -46,20 +46,21 @@ def spatial_resample(ctx, gb, temporal, prev_spatial, prev_owner_p, seeds, k, ra
     w, h = gb.width, gb.height
     p, nrm, ng = gb.p, gb.n, gb.ng
     valid = gb.valid
-    res = Reservoirs.empty(n)
-    candidates = []             # (owner x1, ng, ns, M, shifted from) per reused reservoir, for Z
-
+    # Candidates: this pixel's temporal reservoir, its reprojected spatial
+    # reservoir of last frame, and k neighbours' temporal reservoirs. Each is
+    # (source reservoirs, source row per pixel, weight, M, owner x1, ng, ns,
+    # shifted from); one is chosen per pixel at the end (reservoirs.choose).
+    candidates = []
+    m_own = np.where(valid, temporal.M, 0.0).astype(np.float32)
     own_w = target_at(temporal, p, ng, nrm) * temporal.W * temporal.M
-    merge(res, temporal, own_w, np.where(valid, temporal.M, 0.0), samplers.uniform(seeds, D_SPATIAL))
-    candidates.append((p, ng, nrm, np.where(valid, temporal.M, 0.0), None))
+    pix = np.arange(n)
+    candidates.append((temporal, pix, own_w, m_own, p, ng, nrm, None))
 
     if prev_spatial is not None:
         pw = shift_weight(prev_spatial, prev_owner_p, p, ng, nrm, biased)
-        pm = np.where(valid, prev_spatial.M, 0.0)
-        merge(res, prev_spatial, pw, pm, samplers.uniform(seeds, D_SPATIAL + 1))
-        candidates.append((p, ng, nrm, pm, prev_owner_p))
+        pm = np.where(valid, prev_spatial.M, 0.0).astype(np.float32)
+        candidates.append((prev_spatial, pix, pw, pm, p, ng, nrm, prev_owner_p))
 
-    pix = np.arange(n)
     px, py = (pix % w).astype(np.float32), (pix // w).astype(np.float32)
     # Neighbours' reservoirs enter through their sample point, its normal and
     # luminance(Lo) W M: gathered per neighbour, the rest only for the winners.
@@ -81,9 +82,32 @@ def spatial_resample(ctx, gb, temporal, prev_spatial, prev_owner_p, seeds, k, ra
                                  p_nb, p, ng, nrm, biased)
         weight *= ok
         m = np.where(ok, np.take(temporal.M, nb), 0.0).astype(np.float32)
-        merge(res, temporal, weight, m, samplers.uniform(seeds, D_SPATIAL + 4 + 3 * i), index=nb)
-        if not biased:
-            candidates.append((p_nb, gather(ng, nb), nrm_nb, m, p_nb))
+        ng_nb = gather(ng, nb) if not biased else None
+        candidates.append((temporal, nb, weight, m, p_nb, ng_nb, nrm_nb, p_nb))
+
+    choice, w_sum = choose([c[2] for c in candidates], samplers.uniform(seeds, D_SPATIAL))
+    # The winners' samples: one gather from the temporal reservoirs (own row or
+    # a neighbour's), then the rows won by last frame's spatial reservoir.
+    src_row = pix.copy()
+    from_prev = np.zeros(n, bool)
+    for c, (src, rows, *_rest) in enumerate(candidates):
+        won = choice == c
+        if src is temporal:
+            src_row = np.where(won, rows, src_row)
+        else:
+            from_prev |= won
+    res = Reservoirs.empty(n)
+    for name in Reservoirs.SAMPLE_FIELDS:
+        setattr(res, name, gather(getattr(temporal, name), src_row))
+    prev_won = np.nonzero(from_prev)[0]
+    if len(prev_won):
+        for name in Reservoirs.SAMPLE_FIELDS:
+            scatter(getattr(res, name), prev_won, gather(getattr(prev_spatial, name), prev_won))
+    nothing = choice < 0
+    res.prim2[nothing] = Reservoirs.NO_SAMPLE
+    res.lo[nothing] = 0
+    res.w_sum[:] = w_sum
+    res.M[:] = sum(c[3] for c in candidates)
 
     own_visible = None
     p_hat = target_at(res, p, ng, nrm)
@@ -91,7 +115,7 @@ def spatial_resample(ctx, gb, temporal, prev_spatial, prev_owner_p, seeds, k, ra
         finalize(res, p_hat)
     else:
         z = np.zeros(n, np.float32)
-        for x1_i, ng_i, ns_i, m_i, x1_from in candidates:
+        for _src, _rows, _w, m_i, x1_i, ng_i, ns_i, x1_from in candidates:
             if x1_i is p:
                 if own_visible is None:
                     own_visible = visible(ctx, p, ng, nrm, res)
