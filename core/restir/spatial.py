@@ -24,18 +24,22 @@ from .temporal import DEPTH_REL_MAX, NORMAL_COS_MIN
 D_SPATIAL = 1000            # first sampler dimension of the spatial pass
 
 
-def visible(ctx, x1, ng1, ns1, res):
-    """True where x1 sees its row's sample point (and each faces the other)."""
+def visible(ctx, x1, ng1, ns1, res, where=None):
+    """True where x1 sees its row's sample point (and each faces the other);
+    only rows where ``where`` is True are traced (the others are False)."""
     n = len(x1)
     out = np.zeros(n, bool)
-    rows = np.nonzero(target_at(res, x1, ng1, ns1) > 0)[0]
-    if len(rows):
-        x1_r = gather(x1, rows)
-        to = gather(res.x2, rows) - x1_r
+    rows = None if where is None else np.nonzero(where)[0]
+    if rows is not None:
+        x1, ng1, ns1, res = gather(x1, rows), gather(ng1, rows), gather(ns1, rows), res.view(rows)
+    ok = np.nonzero(target_at(res, x1, ng1, ns1) > 0)[0]
+    if len(ok):
+        x1_r = gather(x1, ok)
+        to = gather(res.x2, ok) - x1_r
         dist = np.sqrt(np.maximum(dot(to, to), 1e-30))
         wi = scale(to, 1.0 / dist).astype(np.float32)
-        blocked = ctx.accel.occluded(*shadow_rays(ctx, x1_r, gather(ng1, rows), wi, dist))
-        out[rows] = ~blocked
+        blocked = ctx.accel.occluded(*shadow_rays(ctx, x1_r, gather(ng1, ok), wi, dist))
+        out[ok if rows is None else rows[ok]] = ~blocked
     return out
 
 
@@ -120,8 +124,8 @@ def spatial_resample(ctx, gb, temporal, prev_spatial, prev_owner_p, seeds, k, ra
                 if own_visible is None:
                     own_visible = visible(ctx, p, ng, nrm, res)
                 vis = own_visible
-            else:
-                vis = visible(ctx, x1_i, ng_i, ns_i, res)
+            else:       # only reservoirs that count in Z need a ray
+                vis = visible(ctx, x1_i, ng_i, ns_i, res, where=m_i > 0)
             if x1_from is not None:
                 # A reservoir could have given the sample here only if its shift
                 # is accepted: shift_weight rejects J outside [J_MIN, J_MAX].
