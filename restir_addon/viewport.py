@@ -21,9 +21,12 @@ the same way by the engine and by tests:
 
 Only ``sync`` touches bpy; everything it read is queued under a lock and
 applied by ``render_step`` between two frames, so the render thread never
-sees a scene half-updated. The engine's callbacks (``view_update``,
-``view_draw``, ``free`` at the end of this file) only hand work over; the GPU
-drawing is a few lines, skipped in background mode where bpy has no GPU.
+sees a scene half-updated.
+
+Here: the session, its settings and its bookkeeping (Work, Update, _Pending).
+The reading of meshes and cameras is in viewport_sync.py; the engine's
+callbacks (``view_update``, ``view_draw``, ``free``) and the GPU drawing are
+in viewport_draw.py, re-exported here with the camera helpers.
 """
 
 import threading
@@ -46,8 +49,12 @@ from ..core.scene import Camera, Lights, Materials, Scene
 from .export import MaterialTable, Warnings, instance_key, row_signature
 from .export.camera import export_camera, render_size
 from .export.lights import is_supported, light_row
-from .export.mesh import GEOMETRY_TYPES, MeshData, place, read_mesh
+from .export.mesh import GEOMETRY_TYPES
 from .export.world import export_world
+from .viewport_sync import _Instance, _mesh_key, _placed, _read_object_mesh, _same_camera
+# Re-exported: engine.py, the tests and the benchmarks find them here.
+from .viewport_draw import free, session_settings, view_draw, view_update  # noqa: F401
+from .viewport_sync import camera_from_region, camera_from_view  # noqa: F401
 
 PATH = "PATH"
 SCALES = {"FULL": 1, "HALF": 2, "QUARTER": 4}
@@ -110,12 +117,6 @@ def as_update(item):
                   bool(item.is_updated_geometry), bool(item.is_updated_shading))
 
 
-@dataclass
-class _Instance:
-    """A placed geometry instance as read from Blender."""
-    mesh: MeshData                  # object space, shared by instances of one mesh
-    matrix: np.ndarray              # (4, 4) float64
-    slot_ids: np.ndarray            # material id of each slot
 
 
 @dataclass
@@ -140,89 +141,6 @@ class _Pending:
         return (self.instances is None and self.materials is None and self.lights is None
                 and self.world is None and self.camera is None and self.size is None
                 and self.filter_width is None and not self.settings)
-
-
-def _same_camera(a, b):
-    if a is None or b is None:
-        return a is b
-    return all(np.array_equal(np.asarray(getattr(a, f)), np.asarray(getattr(b, f)))
-               for f in a.__dataclass_fields__)
-
-
-def _clean_mesh(mesh):
-    """Drop degenerate and non-finite triangles (as core.make_scene does)."""
-    if mesh is None or len(mesh.triangles) == 0:
-        return mesh
-    p = mesh.positions[mesh.triangles]
-    cross = np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0])
-    with np.errstate(invalid="ignore", over="ignore"):
-        area2 = np.einsum("ij,ij->i", cross, cross)
-    keep = np.isfinite(p).all(axis=(1, 2)) & (area2 > 0) & np.isfinite(area2)
-    if keep.all():
-        return mesh
-    return MeshData(mesh.positions, mesh.triangles[keep], mesh.normals[keep], mesh.uvs[keep],
-                    mesh.slots[keep])
-
-
-def _mesh_key(obj):
-    return obj.data.as_pointer() if obj.type == "MESH" else ("converted", obj.name)
-
-
-def _read_object_mesh(obj):
-    """MeshData of an evaluated geometry object (None if it has no mesh)."""
-    if obj.type == "MESH":
-        return _clean_mesh(read_mesh(obj.data))
-    try:
-        me = obj.to_mesh()
-    except RuntimeError:
-        return None
-    if me is None:
-        return None
-    try:
-        return _clean_mesh(read_mesh(me))
-    finally:
-        obj.to_mesh_clear()
-
-
-def _face_normals(pos, tris):
-    """Unit geometric normals, computed as core.make_scene does."""
-    if len(tris) == 0:
-        return np.zeros((0, 3), np.float32)
-    p = pos[tris]
-    ng = np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0])
-    return (ng / np.maximum(np.linalg.norm(ng, axis=1, keepdims=True), 1e-30)).astype(np.float32)
-
-
-def _placed(inst):
-    """World-space (positions, corner normals, face normals) of an instance."""
-    pos, nrm = place(inst.mesh, inst.matrix)
-    nrm = np.where(np.isfinite(nrm), nrm, 0.0).astype(np.float32)
-    return pos, nrm, _face_normals(pos, inst.mesh.triangles)
-
-
-def camera_from_view(view_matrix, window_matrix):
-    """core.Camera of a viewport from its view (world to view) and window
-    (projection) matrices, whatever the image size: the sensor is fitted to
-    the width, and the image keeps the projection's aspect."""
-    V = np.asarray(view_matrix, np.float64)
-    P = np.asarray(window_matrix, np.float64)
-    to_world = np.linalg.inv(V).astype(np.float32)
-    if abs(P[3, 3]) < 0.5:      # perspective: last row (0, 0, -1, 0)
-        near, far = P[2, 3] / (P[2, 2] - 1.0), P[2, 3] / (P[2, 2] + 1.0)
-        return Camera(to_world=to_world, projection="PERSP", lens=float(P[0, 0]), sensor_width=2.0,
-                      sensor_height=2.0, sensor_fit="HORIZONTAL", shift_x=float(P[0, 2] / 2),
-                      shift_y=float(P[1, 2] * P[0, 0] / (2 * P[1, 1])), clip_start=float(near),
-                      clip_end=float(far))
-    near, far = (P[2, 3] + 1.0) / P[2, 2], (P[2, 3] - 1.0) / P[2, 2]
-    return Camera(to_world=to_world, projection="ORTHO", ortho_scale=float(2.0 / P[0, 0]),
-                  sensor_fit="HORIZONTAL", shift_x=float(-P[0, 3] / 2),
-                  shift_y=float(-P[1, 3] * P[0, 0] / (2 * P[1, 1])), clip_start=float(near),
-                  clip_end=float(far))
-
-
-def camera_from_region(region_data):
-    """core.Camera of a 3D viewport's RegionView3D."""
-    return camera_from_view(region_data.view_matrix, region_data.window_matrix)
 
 
 class ViewportSession:
@@ -894,87 +812,3 @@ class ViewportSession:
         state = "done" if self.converged else f"{what} {self._accum_n}/{target}"
         timing = f" | {self.last_frame_seconds:.2f} s/{what}" if self.last_frame_seconds else ""
         return f"{w}x{h} (1/{self._divisor}) | {state}{timing}"
-
-
-# ---------------------------------------------------------------------- engine callbacks
-
-def session_settings(scene):
-    """ViewportSession arguments from the scene's settings (viewport_* ones
-    are optional: defaults when the scene has none)."""
-    from .final import restir_settings
-    s = scene.restir_gi
-    return dict(mode=s.mode, scale=getattr(s, "viewport_scale", DEFAULT_SCALE),
-                samples=getattr(s, "viewport_samples", DEFAULT_SAMPLES),
-                idle_frames=getattr(s, "viewport_idle_frames", DEFAULT_IDLE_FRAMES),
-                frame_budget=getattr(s, "viewport_frame_budget", DEFAULT_FRAME_BUDGET),
-                max_bounces=s.max_bounces, seed=s.seed, restir=restir_settings(scene))
-
-
-def view_update(engine, context, depsgraph):
-    try:
-        session = getattr(engine, "viewport_session", None)
-        if session is None:
-            session = ViewportSession(**session_settings(depsgraph.scene))
-            engine.viewport_session = session
-            session.resize(context.region.width, context.region.height)
-            session.set_view(camera_from_region(context.region_data))
-            session.sync(depsgraph)
-            session.start()
-            return
-        session.configure(**session_settings(depsgraph.scene))
-        session.sync(depsgraph, depsgraph.updates)
-    except Exception as exc:  # never let the viewport die with a traceback
-        traceback.print_exc()
-        engine.update_stats("", f"ReSTIR GI viewport failed: {exc}")
-
-
-def view_draw(engine, context, depsgraph):
-    session = getattr(engine, "viewport_session", None)
-    if session is None:
-        return
-    try:
-        region = context.region
-        # Settings edited in a panel need not reach view_update (no depsgraph
-        # update for add-on properties): compare them on every redraw (cheap).
-        session.configure(**session_settings(depsgraph.scene))
-        session.resize(region.width, region.height)
-        session.set_view(camera_from_region(context.region_data))
-        serial, frame = session.frame_serial, session.frame    # the thread may replace it
-        if frame is not None and not bpy.app.background:
-            _draw(engine, depsgraph.scene, frame, serial, region.width, region.height)
-        engine.update_stats("", f"ReSTIR GI | {session.status()}")
-        if not session.converged:
-            engine.tag_redraw()
-    except Exception as exc:
-        traceback.print_exc()
-        engine.update_stats("", f"ReSTIR GI viewport failed: {exc}")
-
-
-def _draw(engine, scene, frame, serial, width, height):
-    """Draw a frame over the region through Blender's display transform (the
-    texture is uploaded once per new frame)."""
-    import gpu
-    from gpu_extras.presets import draw_texture_2d
-    cached = getattr(engine, "viewport_texture", None)
-    if cached is None or cached[0] != serial:
-        frame = np.ascontiguousarray(frame, np.float32)
-        h, w = frame.shape[:2]
-        pixels = gpu.types.Buffer("FLOAT", w * h * 4, frame.ravel())
-        cached = (serial, gpu.types.GPUTexture((w, h), format="RGBA16F", data=pixels))
-        engine.viewport_texture = cached
-    gpu.state.blend_set("ALPHA_PREMULT")
-    engine.bind_display_space_shader(scene)
-    draw_texture_2d(cached[1], (0, 0), width, height)
-    engine.unbind_display_space_shader()
-    gpu.state.blend_set("NONE")
-
-
-def free(engine):
-    """The viewport closed: stop the render thread without waiting for it."""
-    try:
-        session = getattr(engine, "viewport_session", None)
-    except Exception:   # the engine's Blender data may already be gone
-        return
-    if session is not None:
-        engine.viewport_session = None
-        session.close(wait=False)

@@ -1,0 +1,106 @@
+"""Reading Blender data for the viewport session: meshes, instances, the view.
+
+Plain functions from bpy data to arrays and core cameras, holding no state
+(ViewportSession in viewport.py decides what to read and keeps it): a mesh is
+read in object space and cleaned as core.make_scene cleans it, ``_mesh_key``
+lets the instances of one mesh share it, ``_placed`` puts an instance in world
+space, and ``camera_from_region`` makes a core.Camera of the 3D view.
+"""
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..core.scene import Camera
+from .export.mesh import MeshData, place, read_mesh
+
+
+@dataclass
+class _Instance:
+    """A placed geometry instance as read from Blender."""
+    mesh: MeshData                  # object space, shared by instances of one mesh
+    matrix: np.ndarray              # (4, 4) float64
+    slot_ids: np.ndarray            # material id of each slot
+
+
+def _clean_mesh(mesh):
+    """Drop degenerate and non-finite triangles (as core.make_scene does)."""
+    if mesh is None or len(mesh.triangles) == 0:
+        return mesh
+    p = mesh.positions[mesh.triangles]
+    cross = np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0])
+    with np.errstate(invalid="ignore", over="ignore"):
+        area2 = np.einsum("ij,ij->i", cross, cross)
+    keep = np.isfinite(p).all(axis=(1, 2)) & (area2 > 0) & np.isfinite(area2)
+    if keep.all():
+        return mesh
+    return MeshData(mesh.positions, mesh.triangles[keep], mesh.normals[keep], mesh.uvs[keep],
+                    mesh.slots[keep])
+
+
+def _mesh_key(obj):
+    return obj.data.as_pointer() if obj.type == "MESH" else ("converted", obj.name)
+
+
+def _read_object_mesh(obj):
+    """MeshData of an evaluated geometry object (None if it has no mesh)."""
+    if obj.type == "MESH":
+        return _clean_mesh(read_mesh(obj.data))
+    try:
+        me = obj.to_mesh()
+    except RuntimeError:
+        return None
+    if me is None:
+        return None
+    try:
+        return _clean_mesh(read_mesh(me))
+    finally:
+        obj.to_mesh_clear()
+
+
+def _face_normals(pos, tris):
+    """Unit geometric normals, computed as core.make_scene does."""
+    if len(tris) == 0:
+        return np.zeros((0, 3), np.float32)
+    p = pos[tris]
+    ng = np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0])
+    return (ng / np.maximum(np.linalg.norm(ng, axis=1, keepdims=True), 1e-30)).astype(np.float32)
+
+
+def _placed(inst):
+    """World-space (positions, corner normals, face normals) of an instance."""
+    pos, nrm = place(inst.mesh, inst.matrix)
+    nrm = np.where(np.isfinite(nrm), nrm, 0.0).astype(np.float32)
+    return pos, nrm, _face_normals(pos, inst.mesh.triangles)
+
+
+def camera_from_view(view_matrix, window_matrix):
+    """core.Camera of a viewport from its view (world to view) and window
+    (projection) matrices, whatever the image size: the sensor is fitted to
+    the width, and the image keeps the projection's aspect."""
+    V = np.asarray(view_matrix, np.float64)
+    P = np.asarray(window_matrix, np.float64)
+    to_world = np.linalg.inv(V).astype(np.float32)
+    if abs(P[3, 3]) < 0.5:      # perspective: last row (0, 0, -1, 0)
+        near, far = P[2, 3] / (P[2, 2] - 1.0), P[2, 3] / (P[2, 2] + 1.0)
+        return Camera(to_world=to_world, projection="PERSP", lens=float(P[0, 0]), sensor_width=2.0,
+                      sensor_height=2.0, sensor_fit="HORIZONTAL", shift_x=float(P[0, 2] / 2),
+                      shift_y=float(P[1, 2] * P[0, 0] / (2 * P[1, 1])), clip_start=float(near),
+                      clip_end=float(far))
+    near, far = (P[2, 3] + 1.0) / P[2, 2], (P[2, 3] - 1.0) / P[2, 2]
+    return Camera(to_world=to_world, projection="ORTHO", ortho_scale=float(2.0 / P[0, 0]),
+                  sensor_fit="HORIZONTAL", shift_x=float(-P[0, 3] / 2),
+                  shift_y=float(-P[1, 3] * P[0, 0] / (2 * P[1, 1])), clip_start=float(near),
+                  clip_end=float(far))
+
+
+def camera_from_region(region_data):
+    """core.Camera of a 3D viewport's RegionView3D."""
+    return camera_from_view(region_data.view_matrix, region_data.window_matrix)
+
+
+def _same_camera(a, b):
+    if a is None or b is None:
+        return a is b
+    return all(np.array_equal(np.asarray(getattr(a, f)), np.asarray(getattr(b, f)))
+               for f in a.__dataclass_fields__)
