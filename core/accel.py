@@ -13,6 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .parallel import in_worker
 from .rows import rows_finite, scale
 
 _SPLIT_MIN = 16384          # below this a batch is traced on the calling thread
@@ -91,7 +92,7 @@ class Accel:
 
     def _map(self, fn, n):
         """Run fn(start, stop) over chunks of [0, n), in parallel when it pays."""
-        if self._pool is None or n < _SPLIT_MIN:
+        if self._pool is None or n < _SPLIT_MIN or in_worker():
             return [fn(0, n)]
         bounds = np.linspace(0, n, self.threads + 1).astype(int)
         futures = [self._pool.submit(fn, a, b) for a, b in zip(bounds[:-1], bounds[1:])]

@@ -8,6 +8,7 @@ import numpy as np
 from .camera import PixelFilter
 from .film import Film
 from .integrators.path import camera_pass
+from .parallel import concat_rows
 
 
 @dataclass
@@ -42,10 +43,15 @@ def render_frame(ctx, settings, frame=0, on_sample=None, should_stop=None):
         for a in range(0, n, CHUNK_PIXELS):
             if should_stop is not None and should_stop():
                 return film
-            pix = np.arange(a, min(a + CHUNK_PIXELS, n))
-            res = camera_pass(ctx, w, h, settings.seed, frame, s, settings.max_bounces,
-                              pixel_filter, pixels=pix)
-            color[pix], depth[pix], normal[pix], albedo[pix] = res.color, res.depth, res.normal, res.albedo
+            chunk = min(CHUNK_PIXELS, n - a)
+
+            def part(lo, hi, a=a):
+                return camera_pass(ctx, w, h, settings.seed, frame, s, settings.max_bounces,
+                                   pixel_filter, pixels=np.arange(a + lo, a + hi))
+
+            res = concat_rows(ctx.workers.map(part, chunk))
+            rows = slice(a, a + chunk)
+            color[rows], depth[rows], normal[rows], albedo[rows] = res.color, res.depth, res.normal, res.albedo
         film.add(color, depth=depth, normal=normal, albedo=albedo)
         if on_sample is not None:
             on_sample(film, time.perf_counter() - start)

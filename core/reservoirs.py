@@ -75,6 +75,10 @@ class Reservoirs:
         return SampleView(gather(self.x2, index), gather(self.ng2, index), gather(self.lo, index),
                           np.take(self.prim2, index), np.take(self.W, index), np.take(self.M, index))
 
+    def rows(self, start, stop):
+        """Rows [start, stop) as views (no copy)."""
+        return Reservoirs(**{f.name: getattr(self, f.name)[start:stop] for f in fields(self)})
+
     def copy(self):
         return Reservoirs(**{f.name: getattr(self, f.name).copy() for f in fields(self)})
 

@@ -56,12 +56,15 @@ def test02_shadow_edges_are_flagged_and_held():
 
 
 def test03_counts_follow_flags_and_history():
+    """Flags travel with the reprojection (a camera move shifts them)."""
     index = np.arange(6)
-    prev_pix = np.array([0, 1, -1, 3, 4, 5])
-    prev_hold = np.array([0, 3, 0, 0, 1, 0], np.int8)
+    prev_pix = np.array([1, 2, -1, 4, 5, 0])          # last frame's pixel of each pixel
+    prev_hold = np.array([0, 0, 3, 0, 0, 1], np.int8)   # last frame: pixels 2 and 5 noisy
     hold = reprojected_hold(prev_pix, prev_hold)
     assert list(hold) == [0, 3, 0, 0, 1, 0]
     assert list(light_sample_counts(index, prev_pix, hold, 16)) == [1, 16, 16, 1, 16, 1]
+    # Pixels without a visible point are not in index.
+    assert list(light_sample_counts(np.array([1, 4]), prev_pix, hold, 16)) == [16, 16]
     assert (light_sample_counts(index, prev_pix, None, 16) == 16).all()    # first frame
     assert (light_sample_counts(index, prev_pix, hold, 1) == 1).all()
 

@@ -8,6 +8,7 @@ import numpy as np
 from .. import bsdf, samplers
 from ..accel import Accel, offset_origins
 from ..lights import INF_DIST, LightSet
+from ..parallel import SERIAL, Workers
 from ..rows import gather, row_max, rows_finite, scale, scatter
 from ..sampling import dot, orthonormal_basis, power_heuristic, to_local, to_world
 
@@ -21,14 +22,18 @@ class RenderContext:
     accel: Accel
     lights: LightSet
     eps: float
+    workers: Workers = SERIAL   # threads for whole-image passes (core/parallel.py)
 
     @staticmethod
     def build(scene, threads=None):
         eps = RAY_EPS_RELATIVE * scene.extent()
-        return RenderContext(scene, Accel.from_scene(scene, threads), LightSet(scene), eps)
+        return RenderContext(scene, Accel.from_scene(scene, threads), LightSet(scene), eps,
+                             Workers(threads))
 
     def close(self):
         self.accel.close()
+        if self.workers is not SERIAL:
+            self.workers.close()
 
 
 @dataclass

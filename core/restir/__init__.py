@@ -13,6 +13,7 @@ import numpy as np
 
 from .. import samplers
 from ..camera import PixelFilter
+from ..parallel import concat_rows
 from .adaptive_direct import light_sample_counts, reprojected_hold, update_noise_hold
 from ..reservoirs import finalize, merge
 from .gbuffer import trace_gbuffer
@@ -93,20 +94,6 @@ class ReSTIRGI:
         seeds = samplers.path_seeds(settings.seed, frame, pix, 0x5EED)
 
         history = self.history
-        prev_pix = reproject(scene, gb, history) if settings.temporal else np.full(n, -1, np.int64)
-        hold = reprojected_hold(prev_pix, history.noise_hold) if history is not None else None
-        counts = light_sample_counts(gb.index, prev_pix, hold, settings.light_samples)
-
-        # Initial samples (several per pixel are streamed into one reservoir).
-        initial, direct = initial_samples(ctx, gb, settings.seed, frame, 0, settings.max_bounces,
-                                          settings.initial_sampling, counts)
-        for s in range(1, max(1, settings.samples)):
-            extra, d = initial_samples(ctx, gb, settings.seed, frame, s, settings.max_bounces,
-                                       settings.initial_sampling, counts)
-            merge(initial, extra, extra.w_sum, extra.M, samplers.uniform(seeds, 10 + s))
-            direct += d
-        direct /= max(1, settings.samples)
-        finalize(initial, target_at(initial, gb.p, gb.ng, gb.n))
 
         # Stored samples are re-traced only if the lighting changed since the
         # last validation: in an unchanged scene a re-traced path (same seed)
@@ -121,31 +108,58 @@ class ReSTIRGI:
                 self.validations += 1
                 self._stale = False
 
-        temporal = temporal_resample(initial, gb, history, prev_pix, samplers.uniform(seeds, 5),
-                                     settings.temporal_M_cap, settings.max_age, biased)
+        # Every pass below is per pixel, so workers take pixel ranges
+        # (core/parallel.py); spatial reuse reads neighbours from the whole
+        # image, so it waits for all temporal reservoirs.
+        parts = {r: gb.part(*r) for r in ctx.workers.ranges(n)}
 
-        visible_own = None
-        if settings.spatial:
-            prev_spatial, prev_owner = None, None
-            if history is not None and (prev_pix >= 0).any():
-                q = np.maximum(prev_pix, 0)
-                prev_spatial = history.spatial.take(q)
-                # With 1/Z weights a carried reservoir's weight is w_sum M / Z:
-                # a large M over a small Z compounds frame after frame, so the
-                # unbiased mode carries its spatial history with the temporal cap.
-                cap = settings.spatial_M_cap if biased else min(settings.spatial_M_cap,
-                                                                 settings.temporal_M_cap)
-                prev_spatial.M = np.where(prev_pix >= 0, np.minimum(prev_spatial.M, cap),
-                                          0.0).astype(np.float32)
-                prev_spatial.age += 1
-                prev_spatial.M[prev_spatial.age > settings.max_age] = 0
-                prev_owner = history.p[q]
-            spatial, visible_own = spatial_resample(ctx, gb, temporal, prev_spatial, prev_owner, seeds,
-                                                    settings.spatial_neighbors, settings.spatial_radius,
-                                                    biased)
-        else:
-            spatial = temporal
-        indirect = shade_indirect(ctx, gb, spatial, visible_own)
+        def new_samples(a, b):
+            part = parts[(a, b)]
+            prev = reproject(scene, part, history) if settings.temporal else np.full(b - a, -1, np.int64)
+            hold = reprojected_hold(prev, history.noise_hold) if history is not None else None
+            counts = light_sample_counts(part.index, prev, hold, settings.light_samples)
+            # Initial samples (several per pixel are streamed into one reservoir).
+            initial, direct = initial_samples(ctx, part, settings.seed, frame, 0, settings.max_bounces,
+                                              settings.initial_sampling, counts)
+            for s in range(1, max(1, settings.samples)):
+                extra, d = initial_samples(ctx, part, settings.seed, frame, s, settings.max_bounces,
+                                           settings.initial_sampling, counts)
+                merge(initial, extra, extra.w_sum, extra.M, samplers.uniform(seeds[a:b], 10 + s))
+                direct += d
+            direct /= max(1, settings.samples)
+            finalize(initial, target_at(initial, part.p, part.ng, part.n))
+            temporal = temporal_resample(initial, part, history, prev, samplers.uniform(seeds[a:b], 5),
+                                         settings.temporal_M_cap, settings.max_age, biased)
+            return prev, hold, direct, temporal
+
+        prev_pix, hold, direct, temporal = concat_rows(ctx.workers.map(new_samples, n))
+
+        prev_spatial, prev_owner = None, None
+        if settings.spatial and history is not None and (prev_pix >= 0).any():
+            q = np.maximum(prev_pix, 0)
+            prev_spatial = history.spatial.take(q)
+            # With 1/Z weights a carried reservoir's weight is w_sum M / Z:
+            # a large M over a small Z compounds frame after frame, so the
+            # unbiased mode carries its spatial history with the temporal cap.
+            cap = settings.spatial_M_cap if biased else min(settings.spatial_M_cap,
+                                                             settings.temporal_M_cap)
+            prev_spatial.M = np.where(prev_pix >= 0, np.minimum(prev_spatial.M, cap),
+                                      0.0).astype(np.float32)
+            prev_spatial.age += 1
+            prev_spatial.M[prev_spatial.age > settings.max_age] = 0
+            prev_owner = history.p[q]
+        gb.p, gb.n, gb.ng    # noqa: B018  (cached before the workers read them)
+
+        def reuse(a, b):
+            if settings.spatial:
+                spatial, visible_own = spatial_resample(
+                    ctx, gb, temporal, prev_spatial, prev_owner, seeds, settings.spatial_neighbors,
+                    settings.spatial_radius, biased, rows=(a, b))
+            else:
+                spatial, visible_own = temporal.rows(a, b), None
+            return spatial, visible_own, shade_indirect(ctx, parts[(a, b)], spatial, visible_own)
+
+        spatial, _, indirect = concat_rows(ctx.workers.map(reuse, n))
         direct_total = gb.emission + direct
         color = direct_total + indirect
         np.nan_to_num(color, copy=False, nan=0.0, posinf=0.0, neginf=0.0)

@@ -50,14 +50,14 @@ def update_noise_hold(direct, valid, width, height, prev_hold):
     return hold
 
 
-def light_sample_counts(index, prev_pix, prev_hold, light_samples):
+def light_sample_counts(index, prev_pix, hold, light_samples):
     """Shadow rays per visible point (gb.index order): ``light_samples`` where
-    the reprojected history is flagged noisy or missing, else one."""
+    the reprojected hold (reprojected_hold) flags noise or history is missing
+    (prev_pix < 0), else one."""
     light_samples = max(1, int(light_samples))
-    if prev_hold is None or light_samples == 1:
+    if hold is None or light_samples == 1:
         return np.full(len(index), light_samples, np.int64)
-    q = prev_pix[index]
-    flagged = (q < 0) | (prev_hold[np.maximum(q, 0)] > 0)
+    flagged = (prev_pix[index] < 0) | (hold[index] > 0)
     return np.where(flagged, light_samples, 1).astype(np.int64)
 
 

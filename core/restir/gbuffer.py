@@ -1,5 +1,6 @@
 """Primary visibility: the visible point of every pixel (the G-buffer)."""
 
+import dataclasses
 from dataclasses import dataclass
 from functools import cached_property
 
@@ -9,6 +10,7 @@ from .. import samplers
 from ..camera import generate_rays, view_depth
 from ..integrators.base import ShadingFrame
 from ..interaction import SurfaceHits, surface_hits
+from ..parallel import concat_rows
 from ..rows import scatter
 
 
@@ -25,6 +27,17 @@ class GBuffer:
     albedo: np.ndarray      # (P, 3)
     width: int
     height: int
+    offset: int = 0         # pixel index of row 0 (a part of the image: see part())
+
+    def part(self, start, stop):
+        """The pixels [start, stop) as a GBuffer of their own (rows of a pass
+        that workers split; offset keeps their image-wide pixel index)."""
+        lo, hi = np.searchsorted(self.index, [start, stop])
+        rows = np.arange(lo, hi)
+        return GBuffer(self.valid[start:stop], self.surf.subset(rows), self.frame.subset(rows),
+                       self.index[lo:hi] - start, self.depth[start:stop], self.object_id[start:stop],
+                       self.emission[start:stop], self.albedo[start:stop], self.width, self.height,
+                       self.offset + start)
 
     def _image(self, rows):
         return scatter(np.zeros((len(self.valid), 3), np.float32), self.index, rows)
@@ -44,11 +57,23 @@ class GBuffer:
 
 
 def trace_gbuffer(ctx, seed, frame, pixel_filter, jitter=True):
-    """Trace one primary ray per pixel (jittered by the pixel filter)."""
+    """Trace one primary ray per pixel (jittered by the pixel filter), the
+    pixel ranges on the context's workers."""
+    scene = ctx.scene
+    n = scene.width * scene.height
+    parts = ctx.workers.map(lambda a, b: _trace_rows(ctx, seed, frame, pixel_filter, jitter, a, b), n)
+    if len(parts) == 1:
+        return parts[0]
+    joined = concat_rows([dataclasses.replace(g, index=g.index + g.offset, offset=0) for g in parts])
+    return joined
+
+
+def _trace_rows(ctx, seed, frame, pixel_filter, jitter, start, stop):
+    """The GBuffer of pixels [start, stop) (offset start)."""
     scene = ctx.scene
     w, h = scene.width, scene.height
-    n = w * h
-    pix = np.arange(n, dtype=np.int64)
+    n = stop - start
+    pix = np.arange(start, stop, dtype=np.int64)
     xy = np.stack([pix % w, pix // w], axis=1).astype(np.float32) + 0.5
     if jitter:
         seeds = samplers.path_seeds(seed, frame, pix, 0xC0FFEE)
@@ -63,11 +88,11 @@ def trace_gbuffer(ctx, seed, frame, pixel_filter, jitter=True):
     depth = np.full(n, 1e10, np.float32)
     object_id = np.full(n, -1, np.int32)
     albedo = np.zeros((n, 3), np.float32)
-    frame = ShadingFrame.at(scene, surf)
+    frame_sh = ShadingFrame.at(scene, surf)
     if len(idx):
         if len(ctx.lights.tri_index):
             emission[idx] += ctx.lights.triangle_emission(surf.prim, surf.front)
         depth[idx] = view_depth(scene.camera, surf.p)
         object_id[idx] = np.take(scene.object_ids, surf.prim)
-        scatter(albedo, idx, np.clip(frame.params.diffuse + frame.params.f0, 0.0, 1.0))
-    return GBuffer(valid, surf, frame, idx, depth, object_id, emission, albedo, w, h)
+        scatter(albedo, idx, np.clip(frame_sh.params.diffuse + frame_sh.params.f0, 0.0, 1.0))
+    return GBuffer(valid, surf, frame_sh, idx, depth, object_id, emission, albedo, w, h, start)

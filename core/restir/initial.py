@@ -57,7 +57,7 @@ def initial_samples(ctx, gb, seed, frame, sample, max_bounces, sampling=COSINE, 
     surf, index = gb.surf, gb.index
     if len(index) == 0:
         return res, direct
-    seeds = samplers.path_seeds(seed, frame, index, sample)
+    seeds = samplers.path_seeds(seed, frame, index + gb.offset, sample)
     frame_sh = gb.frame
     params, wo_l = frame_sh.params, frame_sh.wo_local
 

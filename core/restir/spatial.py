@@ -43,27 +43,36 @@ def visible(ctx, x1, ng1, ns1, res, where=None):
     return out
 
 
-def spatial_resample(ctx, gb, temporal, prev_spatial, prev_owner_p, seeds, k, radius, biased):
+def spatial_resample(ctx, gb, temporal, prev_spatial, prev_owner_p, seeds, k, radius, biased,
+                     rows=None):
     """Spatial reservoirs of this frame, and (unbiased mode) the visibility of
-    each pixel's chosen sample from its own visible point, for final shading."""
-    n = len(gb.valid)
+    each pixel's chosen sample from its own visible point, for final shading.
+
+    rows: the (start, stop) range of pixels to resample (all by default; a
+    worker's share), whose own arrays are sliced from the whole-image inputs;
+    neighbours come from the whole image."""
+    a, b = rows if rows is not None else (0, len(gb.valid))
     w, h = gb.width, gb.height
-    p, nrm, ng = gb.p, gb.n, gb.ng
-    valid = gb.valid
+    p_all, nrm_all, ng_all = gb.p, gb.n, gb.ng
+    p, nrm, ng = p_all[a:b], nrm_all[a:b], ng_all[a:b]
+    valid, depth = gb.valid[a:b], gb.depth[a:b]
+    seeds = seeds[a:b]
+    own = temporal.rows(a, b)
+    pix = np.arange(a, b)
     # Candidates: this pixel's temporal reservoir, its reprojected spatial
     # reservoir of last frame, and k neighbours' temporal reservoirs. Each is
     # (source reservoirs, source row per pixel, weight, M, owner x1, ng, ns,
     # shifted from); one is chosen per pixel at the end (reservoirs.choose).
     candidates = []
-    m_own = np.where(valid, temporal.M, 0.0).astype(np.float32)
-    own_w = target_at(temporal, p, ng, nrm) * temporal.W * temporal.M
-    pix = np.arange(n)
+    m_own = np.where(valid, own.M, 0.0).astype(np.float32)
+    own_w = target_at(own, p, ng, nrm) * own.W * own.M
     candidates.append((temporal, pix, own_w, m_own, p, ng, nrm, None))
 
     if prev_spatial is not None:
-        pw = shift_weight(prev_spatial, prev_owner_p, p, ng, nrm, biased)
-        pm = np.where(valid, prev_spatial.M, 0.0).astype(np.float32)
-        candidates.append((prev_spatial, pix, pw, pm, p, ng, nrm, prev_owner_p))
+        prev_own = prev_spatial.rows(a, b)
+        pw = shift_weight(prev_own, prev_owner_p[a:b], p, ng, nrm, biased)
+        pm = np.where(valid, prev_own.M, 0.0).astype(np.float32)
+        candidates.append((prev_spatial, pix, pw, pm, p, ng, nrm, prev_owner_p[a:b]))
 
     px, py = (pix % w).astype(np.float32), (pix // w).astype(np.float32)
     # Neighbours' reservoirs enter through their sample point, its normal and
@@ -77,27 +86,28 @@ def spatial_resample(ctx, gb, temporal, prev_spatial, prev_owner_p, seeds, k, ra
         nx = np.clip(np.rint(px + r * np.cos(phi)), 0, w - 1).astype(np.int64)
         ny = np.clip(np.rint(py + r * np.sin(phi)), 0, h - 1).astype(np.int64)
         nb = ny * w + nx
-        nrm_nb = gather(nrm, nb)
-        ok = valid & np.take(valid, nb) & (nb != pix)
+        nrm_nb = gather(nrm_all, nb)
+        ok = valid & np.take(gb.valid, nb) & (nb != pix)
         ok &= dot(nrm, nrm_nb) >= NORMAL_COS_MIN
-        ok &= np.abs(np.take(gb.depth, nb) - gb.depth) <= DEPTH_REL_MAX * gb.depth
-        p_nb = gather(p, nb)
+        ok &= np.abs(np.take(gb.depth, nb) - depth) <= DEPTH_REL_MAX * depth
+        p_nb = gather(p_all, nb)
         weight = shift_weight_of(gather(temporal.x2, nb), gather(temporal.ng2, nb), np.take(lum_wm, nb),
                                  p_nb, p, ng, nrm, biased)
         weight *= ok
         m = np.where(ok, np.take(temporal.M, nb), 0.0).astype(np.float32)
-        ng_nb = gather(ng, nb) if not biased else None
+        ng_nb = gather(ng_all, nb) if not biased else None
         candidates.append((temporal, nb, weight, m, p_nb, ng_nb, nrm_nb, p_nb))
 
     choice, w_sum = choose([c[2] for c in candidates], samplers.uniform(seeds, D_SPATIAL))
     # The winners' samples: one gather from the temporal reservoirs (own row or
     # a neighbour's), then the rows won by last frame's spatial reservoir.
+    n = b - a
     src_row = pix.copy()
     from_prev = np.zeros(n, bool)
-    for c, (src, rows, *_rest) in enumerate(candidates):
+    for c, (src, src_rows, *_rest) in enumerate(candidates):
         won = choice == c
         if src is temporal:
-            src_row = np.where(won, rows, src_row)
+            src_row = np.where(won, src_rows, src_row)
         else:
             from_prev |= won
     res = Reservoirs.empty(n)
@@ -106,7 +116,7 @@ def spatial_resample(ctx, gb, temporal, prev_spatial, prev_owner_p, seeds, k, ra
     prev_won = np.nonzero(from_prev)[0]
     if len(prev_won):
         for name in Reservoirs.SAMPLE_FIELDS:
-            scatter(getattr(res, name), prev_won, gather(getattr(prev_spatial, name), prev_won))
+            scatter(getattr(res, name), prev_won, gather(getattr(prev_spatial, name), pix[prev_won]))
     nothing = choice < 0
     res.prim2[nothing] = Reservoirs.NO_SAMPLE
     res.lo[nothing] = 0

@@ -1,0 +1,75 @@
+"""Both cores for whole-image passes: pixel ranges on worker threads.
+
+numpy releases the GIL inside its array loops and Embree inside its queries,
+so two threads each running a pass over half of the pixels overlap well
+(bench/bench_path.py measures it). A pass is split into contiguous pixel
+ranges; every range is computed from the same inputs with the same per-pixel
+random numbers, so the result does not depend on the number of workers.
+
+Ray queries made from a worker run on that worker alone: the Accel's own
+two-thread split would only oversubscribe the cores.
+"""
+
+import os
+import threading
+from concurrent.futures import ThreadPoolExecutor
+
+import numpy as np
+
+_local = threading.local()
+MIN_PIXELS_PER_WORKER = 4096     # below this a pass runs on the calling thread
+
+
+def in_worker():
+    """True on a Workers thread (Accel then traces on the calling thread)."""
+    return getattr(_local, "worker", False)
+
+
+def _mark_worker():
+    _local.worker = True
+
+
+class Workers:
+    """A small pool that maps a function over contiguous pixel ranges."""
+
+    def __init__(self, threads=None):
+        self.threads = max(1, threads or min(os.cpu_count() or 1, 2))
+        self._pool = (ThreadPoolExecutor(self.threads, initializer=_mark_worker)
+                      if self.threads > 1 else None)
+
+    def ranges(self, n):
+        """Contiguous (start, stop) ranges covering [0, n), one per worker used."""
+        parts = 1 if self._pool is None else max(1, min(self.threads, n // MIN_PIXELS_PER_WORKER))
+        bounds = np.linspace(0, n, parts + 1).astype(np.int64)
+        return [(int(a), int(b)) for a, b in zip(bounds[:-1], bounds[1:])]
+
+    def map(self, fn, n):
+        """[fn(start, stop) for each range of [0, n)], in range order."""
+        parts = self.ranges(n)
+        if len(parts) == 1 or in_worker():
+            return [fn(a, b) for a, b in parts]
+        futures = [self._pool.submit(fn, a, b) for a, b in parts]
+        return [f.result() for f in futures]
+
+    def close(self):
+        if self._pool is not None:
+            self._pool.shutdown(wait=False)
+            self._pool = None
+
+
+SERIAL = Workers(1)
+
+
+def concat_rows(parts):
+    """Concatenate per-range results: arrays, or dataclasses of arrays (same type)."""
+    first = parts[0]
+    if len(parts) == 1:
+        return first
+    if isinstance(first, np.ndarray):
+        return np.concatenate(parts)
+    if first is None or np.isscalar(first) or isinstance(first, (str, list)):
+        return first            # per-call constants (sizes, names) are the same in every part
+    if isinstance(first, tuple):
+        return tuple(concat_rows([p[i] for p in parts]) for i in range(len(first)))
+    fields = first.__dataclass_fields__
+    return type(first)(**{f: concat_rows([getattr(p, f) for p in parts]) for f in fields})

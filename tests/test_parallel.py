@@ -1,0 +1,57 @@
+"""Whole-image passes on worker threads (core/parallel.py): the split into
+pixel ranges changes nothing in the result, for path tracing and for every
+ReSTIR GI pass (each range uses the image-wide pixel index for its random
+numbers and reads neighbours from the whole image)."""
+
+import numpy as np
+import pytest
+
+from core import RenderContext, RenderSettings, render_frame
+from core.parallel import MIN_PIXELS_PER_WORKER, Workers, concat_rows
+from core.restir import BIASED, UNBIASED, ReSTIRGI, ReSTIRSettings
+from scenes import cornell_box
+
+W, H = 96, 96           # large enough for two ranges of MIN_PIXELS_PER_WORKER
+
+
+def test01_ranges_cover_the_image_once():
+    workers = Workers(2)
+    try:
+        for n in (0, 1, MIN_PIXELS_PER_WORKER, 2 * MIN_PIXELS_PER_WORKER + 3, 100_000):
+            ranges = workers.ranges(n)
+            assert ranges[0][0] == 0 and ranges[-1][1] == n
+            assert all(a1 == b0 for (_, b0), (a1, _) in zip(ranges, ranges[1:]))
+            assert len(ranges) == (2 if n >= 2 * MIN_PIXELS_PER_WORKER else 1)
+        got = concat_rows(workers.map(lambda a, b: np.arange(a, b), 100_000))
+        assert np.array_equal(got, np.arange(100_000))
+    finally:
+        workers.close()
+
+
+@pytest.fixture(scope="module")
+def contexts():
+    scene = cornell_box("area", W, H)
+    serial, parallel = RenderContext.build(scene, threads=1), RenderContext.build(scene, threads=2)
+    assert len(parallel.workers.ranges(W * H)) == 2
+    yield serial, parallel
+    serial.close()
+    parallel.close()
+
+
+def test02_path_tracing_is_the_same_on_two_workers(contexts):
+    films = [render_frame(ctx, RenderSettings(samples=2, max_bounces=3, seed=4)) for ctx in contexts]
+    assert np.array_equal(films[0].mean(), films[1].mean())
+
+
+@pytest.mark.parametrize("mode", [BIASED, UNBIASED])
+def test03_restir_is_the_same_on_two_workers(contexts, mode):
+    settings = ReSTIRSettings(mode=mode, max_bounces=2, seed=9)
+    results = []
+    for ctx in contexts:
+        restir = ReSTIRGI()
+        frames = [restir.render_frame(ctx, settings, f) for f in range(4)]
+        results.append(frames[-1])
+    a, b = results
+    assert a.history_found > 0.5
+    for field in ("color", "direct", "indirect", "M", "W"):
+        assert np.array_equal(getattr(a, field), getattr(b, field)), field
