@@ -14,6 +14,7 @@ import numpy as np
 from .. import samplers
 from ..camera import PixelFilter
 from ..parallel import concat_rows
+from ..rows import gather
 from .adaptive_direct import light_sample_counts, reprojected_hold, update_noise_hold
 from ..reservoirs import finalize, merge
 from .gbuffer import trace_gbuffer
@@ -111,10 +112,8 @@ class ReSTIRGI:
         # Every pass below is per pixel, so workers take pixel ranges
         # (core/parallel.py); spatial reuse reads neighbours from the whole
         # image, so it waits for all temporal reservoirs.
-        parts = {r: gb.part(*r) for r in ctx.workers.ranges(n)}
-
         def new_samples(a, b):
-            part = parts[(a, b)]
+            part = gb.part(a, b)
             prev = reproject(scene, part, history) if settings.temporal else np.full(b - a, -1, np.int64)
             hold = reprojected_hold(prev, history.noise_hold) if history is not None else None
             counts = light_sample_counts(part.index, prev, hold, settings.light_samples)
@@ -134,30 +133,30 @@ class ReSTIRGI:
 
         prev_pix, hold, direct, temporal = concat_rows(ctx.workers.map(new_samples, n))
 
-        prev_spatial, prev_owner = None, None
-        if settings.spatial and history is not None and (prev_pix >= 0).any():
-            q = np.maximum(prev_pix, 0)
-            prev_spatial = history.spatial.take(q)
-            # With 1/Z weights a carried reservoir's weight is w_sum M / Z:
-            # a large M over a small Z compounds frame after frame, so the
-            # unbiased mode carries its spatial history with the temporal cap.
-            cap = settings.spatial_M_cap if biased else min(settings.spatial_M_cap,
-                                                             settings.temporal_M_cap)
-            prev_spatial.M = np.where(prev_pix >= 0, np.minimum(prev_spatial.M, cap),
-                                      0.0).astype(np.float32)
-            prev_spatial.age += 1
-            prev_spatial.M[prev_spatial.age > settings.max_age] = 0
-            prev_owner = history.p[q]
         gb.p, gb.n, gb.ng    # noqa: B018  (cached before the workers read them)
+        # With 1/Z weights a carried spatial reservoir's weight is w_sum M / Z:
+        # a large M over a small Z compounds frame after frame, so the unbiased
+        # mode carries its spatial history with the temporal cap.
+        cap = settings.spatial_M_cap if biased else min(settings.spatial_M_cap, settings.temporal_M_cap)
+        carry = settings.spatial and history is not None and bool((prev_pix >= 0).any())
 
         def reuse(a, b):
-            if settings.spatial:
+            if not settings.spatial:
+                spatial, visible_own = temporal.rows(a, b), None
+            else:
+                prev_spatial, prev_owner = None, None
+                if carry:       # last frame's spatial reservoirs of these pixels
+                    found = prev_pix[a:b] >= 0
+                    q = np.maximum(prev_pix[a:b], 0)
+                    prev_spatial = history.spatial.take(q)
+                    prev_spatial.M = np.where(found, np.minimum(prev_spatial.M, cap), 0.0).astype(np.float32)
+                    prev_spatial.age += 1
+                    prev_spatial.M[prev_spatial.age > settings.max_age] = 0
+                    prev_owner = gather(history.p, q)
                 spatial, visible_own = spatial_resample(
                     ctx, gb, temporal, prev_spatial, prev_owner, seeds, settings.spatial_neighbors,
                     settings.spatial_radius, biased, rows=(a, b))
-            else:
-                spatial, visible_own = temporal.rows(a, b), None
-            return spatial, visible_own, shade_indirect(ctx, parts[(a, b)], spatial, visible_own)
+            return spatial, visible_own, shade_indirect(ctx, gb.part(a, b), spatial, visible_own)
 
         spatial, _, indirect = concat_rows(ctx.workers.map(reuse, n))
         direct_total = gb.emission + direct

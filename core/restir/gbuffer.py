@@ -28,10 +28,15 @@ class GBuffer:
     width: int
     height: int
     offset: int = 0         # pixel index of row 0 (a part of the image: see part())
+    parts: dict = dataclasses.field(default=None, repr=False)   # (start, stop) -> GBuffer
 
     def part(self, start, stop):
         """The pixels [start, stop) as a GBuffer of their own (rows of a pass
         that workers split; offset keeps their image-wide pixel index)."""
+        if self.parts is not None and (start, stop) in self.parts:
+            return self.parts[(start, stop)]
+        if start == 0 and stop == len(self.valid):
+            return self
         lo, hi = np.searchsorted(self.index, [start, stop])
         rows = np.arange(lo, hi)
         return GBuffer(self.valid[start:stop], self.surf.subset(rows), self.frame.subset(rows),
@@ -39,21 +44,24 @@ class GBuffer:
                        self.emission[start:stop], self.albedo[start:stop], self.width, self.height,
                        self.offset + start)
 
-    def _image(self, rows):
+    def _image(self, name):
+        if self.parts is not None and len(self.parts) > 1:     # the parts have theirs
+            return np.concatenate([getattr(part, name) for part in self.parts.values()])
+        rows = getattr(self.surf, "ns" if name == "n" else name)
         return scatter(np.zeros((len(self.valid), 3), np.float32), self.index, rows)
 
     @cached_property
     def p(self):
         """(P, 3) positions (zeros on misses)."""
-        return self._image(self.surf.p)
+        return self._image("p")
 
     @cached_property
     def ng(self):
-        return self._image(self.surf.ng)
+        return self._image("ng")
 
     @cached_property
     def n(self):
-        return self._image(self.surf.ns)
+        return self._image("n")
 
 
 def trace_gbuffer(ctx, seed, frame, pixel_filter, jitter=True):
@@ -61,10 +69,12 @@ def trace_gbuffer(ctx, seed, frame, pixel_filter, jitter=True):
     pixel ranges on the context's workers."""
     scene = ctx.scene
     n = scene.width * scene.height
+    ranges = ctx.workers.ranges(n)
     parts = ctx.workers.map(lambda a, b: _trace_rows(ctx, seed, frame, pixel_filter, jitter, a, b), n)
     if len(parts) == 1:
         return parts[0]
     joined = concat_rows([dataclasses.replace(g, index=g.index + g.offset, offset=0) for g in parts])
+    joined.parts = dict(zip(ranges, parts))
     return joined
 
 

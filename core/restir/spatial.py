@@ -50,7 +50,9 @@ def spatial_resample(ctx, gb, temporal, prev_spatial, prev_owner_p, seeds, k, ra
 
     rows: the (start, stop) range of pixels to resample (all by default; a
     worker's share), whose own arrays are sliced from the whole-image inputs;
-    neighbours come from the whole image."""
+    neighbours come from the whole image. prev_spatial and prev_owner_p (last
+    frame's spatial reservoirs reprojected, and their visible points) are
+    given for those rows only."""
     a, b = rows if rows is not None else (0, len(gb.valid))
     w, h = gb.width, gb.height
     p_all, nrm_all, ng_all = gb.p, gb.n, gb.ng
@@ -69,10 +71,9 @@ def spatial_resample(ctx, gb, temporal, prev_spatial, prev_owner_p, seeds, k, ra
     candidates.append((temporal, pix, own_w, m_own, p, ng, nrm, None))
 
     if prev_spatial is not None:
-        prev_own = prev_spatial.rows(a, b)
-        pw = shift_weight(prev_own, prev_owner_p[a:b], p, ng, nrm, biased)
-        pm = np.where(valid, prev_own.M, 0.0).astype(np.float32)
-        candidates.append((prev_spatial, pix, pw, pm, p, ng, nrm, prev_owner_p[a:b]))
+        pw = shift_weight(prev_spatial, prev_owner_p, p, ng, nrm, biased)
+        pm = np.where(valid, prev_spatial.M, 0.0).astype(np.float32)
+        candidates.append((prev_spatial, None, pw, pm, p, ng, nrm, prev_owner_p))
 
     px, py = (pix % w).astype(np.float32), (pix // w).astype(np.float32)
     # Neighbours' reservoirs enter through their sample point, its normal and
@@ -116,7 +117,7 @@ def spatial_resample(ctx, gb, temporal, prev_spatial, prev_owner_p, seeds, k, ra
     prev_won = np.nonzero(from_prev)[0]
     if len(prev_won):
         for name in Reservoirs.SAMPLE_FIELDS:
-            scatter(getattr(res, name), prev_won, gather(getattr(prev_spatial, name), pix[prev_won]))
+            scatter(getattr(res, name), prev_won, gather(getattr(prev_spatial, name), prev_won))
     nothing = choice < 0
     res.prim2[nothing] = Reservoirs.NO_SAMPLE
     res.lo[nothing] = 0
