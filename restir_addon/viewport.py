@@ -41,6 +41,7 @@ from ..core.camera import PixelFilter
 from ..core.dynamic_accel import DynamicAccel, TraceInterrupted
 from ..core.film import to_rgba
 from ..core.integrators.base import RAY_EPS_RELATIVE, RenderContext
+from ..core.parallel import Workers
 from ..core.integrators.path import camera_pass
 from ..core.lights import LightSet
 from ..core.render import CHUNK_PIXELS
@@ -187,6 +188,7 @@ class ViewportSession:
         # --- render side (render_step) ---
         self._scene = None
         self._accel = None
+        self._workers = None        # threads for whole-image passes, made with the first context
         self._ctx = None
         self._restir = ReSTIRGI()
         self._frame_index = 0
@@ -630,7 +632,9 @@ class ViewportSession:
             lights, eps = self._ctx.lights, self._ctx.eps
             lights.lights = scene.lights
         self._scene = scene
-        self._ctx = RenderContext(scene, self._accel, lights, eps)
+        if self._workers is None:
+            self._workers = Workers(self.threads)
+        self._ctx = RenderContext(scene, self._accel, lights, eps, self._workers)
 
     def _render_resolution(self):
         if self._divisor is None:
@@ -724,9 +728,13 @@ class ViewportSession:
         color = np.zeros((n, 3), np.float32)
         pixel_filter = PixelFilter(scene.filter_width)
         for a in range(0, n, CHUNK_PIXELS):
-            pix = np.arange(a, min(a + CHUNK_PIXELS, n))
-            color[pix] = camera_pass(self._ctx, w, h, self.seed, 0, sample, self.max_bounces,
-                                     pixel_filter, pixels=pix).color
+            chunk = min(CHUNK_PIXELS, n - a)
+
+            def part(lo, hi, a=a):
+                return camera_pass(self._ctx, w, h, self.seed, 0, sample, self.max_bounces,
+                                   pixel_filter, pixels=np.arange(a + lo, a + hi)).color
+
+            color[a:a + chunk] = np.concatenate(self._ctx.workers.map(part, chunk))
         return color
 
     # ------------------------------------------------------------------ thread
@@ -793,7 +801,9 @@ class ViewportSession:
     def _free(self):
         if self._accel is not None:
             self._accel.close()
-        self._accel = self._ctx = self._scene = None
+        if self._workers is not None:
+            self._workers.close()
+        self._accel = self._ctx = self._scene = self._workers = None
         self._arrays = None
         self._place_cache = {}
         self._layout = {}

@@ -12,6 +12,8 @@ import numpy as np
 
 from ..integrators.path import radiance_from_surface
 from ..interaction import SurfaceHits
+from ..parallel import concat_rows
+from ..rows import gather
 from ..sampling import luminance
 
 CHANGE_THRESHOLD = 0.25     # relative change of luminance that invalidates a sample
@@ -30,10 +32,14 @@ def validate(ctx, res, max_bounces, threshold=CHANGE_THRESHOLD):
     rows = np.nonzero((res.prim2 >= 0) & (res.M > 0))[0]
     if len(rows) == 0 or max_bounces < 1:
         return int(len(changed_sky))
-    surf = SurfaceHits(p=res.x2[rows], ng=res.ng2[rows], ns=res.n2[rows],
-                       uv=np.zeros((len(rows), 2), np.float32), wo=res.wo2[rows],
-                       prim=res.prim2[rows], material=res.mat2[rows], front=np.ones(len(rows), bool))
-    lo_new = radiance_from_surface(ctx, surf, res.seed[rows], 1, max_bounces)
+    def retrace(a, b):      # the paths of rows[a:b], on the context's workers
+        r = rows[a:b]
+        surf = SurfaceHits(p=gather(res.x2, r), ng=gather(res.ng2, r), ns=gather(res.n2, r),
+                           uv=np.zeros((len(r), 2), np.float32), wo=gather(res.wo2, r),
+                           prim=res.prim2[r], material=res.mat2[r], front=np.ones(len(r), bool))
+        return radiance_from_surface(ctx, surf, res.seed[r], 1, max_bounces)
+
+    lo_new = concat_rows(ctx.workers.map(retrace, len(rows)))
     old = luminance(res.lo[rows])
     new = luminance(lo_new)
     changed = np.abs(new - old) > threshold * np.maximum(np.maximum(old, new), 1e-6)
