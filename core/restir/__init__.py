@@ -133,7 +133,7 @@ class ReSTIRGI:
 
         prev_pix, hold, direct, temporal = concat_rows(ctx.workers.map(new_samples, n))
 
-        gb.p, gb.n, gb.ng    # noqa: B018  (cached before the workers read them)
+        gb.images()     # the whole-image arrays, made before the workers read them
         # With 1/Z weights a carried spatial reservoir's weight is w_sum M / Z:
         # a large M over a small Z compounds frame after frame, so the unbiased
         # mode carries its spatial history with the temporal cap.

@@ -63,6 +63,11 @@ class GBuffer:
     def n(self):
         return self._image("n")
 
+    def images(self):
+        """(p, n, ng) of the whole image, computed now (cached_property is not
+        safe to fill from several threads at once)."""
+        return self.p, self.n, self.ng
+
 
 def trace_gbuffer(ctx, seed, frame, pixel_filter, jitter=True):
     """Trace one primary ray per pixel (jittered by the pixel filter), the
