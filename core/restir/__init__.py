@@ -7,6 +7,8 @@ shading (shading.py); every few frames, sample validation (validation.py).
 plain functions of plain arrays.
 """
 
+import threading
+import time
 from dataclasses import dataclass
 
 import numpy as np
@@ -72,6 +74,7 @@ class ReSTIRGI:
         self.history = None
         self.frames = 0
         self.validations = 0        # sample validations run (skipped while nothing changed)
+        self.last_timings = {}      # seconds per pass of the last frame (see render_frame)
         self._lighting_key = None   # Scene.lighting_key of the last frame
         self._stale = False         # the lighting changed since the last validation
 
@@ -84,12 +87,27 @@ class ReSTIRGI:
             a.nbytes for a in (h.p, h.n, h.ng, h.depth, h.valid, h.object_id, h.noise_hold))
 
     def render_frame(self, ctx, settings, frame):
+        """One frame. Afterwards ``last_timings`` holds seconds per pass: wall
+        time for 'gbuffer', 'validation' and 'total', and for the passes the
+        workers run ('initial', 'temporal', 'spatial', 'shading') the sum
+        over workers, i.e. what they would take on one thread."""
+        t_start = time.perf_counter()
+        timings = {"gbuffer": 0.0, "validation": 0.0, "initial": 0.0, "temporal": 0.0,
+                   "spatial": 0.0, "shading": 0.0}
+        lock = threading.Lock()
+
+        def spent(name, t0):
+            with lock:
+                timings[name] += time.perf_counter() - t0
+            return time.perf_counter()
+
         scene = ctx.scene
         if self.history is not None and self.history.signature != _signature(scene):
             self.reset()    # new resolution, or stored triangle/material ids mean nothing now
         biased = settings.mode != UNBIASED
         pixel_filter = PixelFilter(scene.filter_width)
         gb = trace_gbuffer(ctx, settings.seed, frame, pixel_filter)
+        t = spent("gbuffer", t_start)
         n = len(gb.valid)
         pix = np.arange(n, dtype=np.int64)
         seeds = samplers.path_seeds(settings.seed, frame, pix, 0x5EED)
@@ -108,11 +126,13 @@ class ReSTIRGI:
                 validate(ctx, history.spatial, settings.max_bounces)
                 self.validations += 1
                 self._stale = False
+        spent("validation", t)
 
         # Every pass below is per pixel, so workers take pixel ranges
         # (core/parallel.py); spatial reuse reads neighbours from the whole
         # image, so it waits for all temporal reservoirs.
         def new_samples(a, b):
+            t = time.perf_counter()
             part = gb.part(a, b)
             prev = reproject(scene, part, history) if settings.temporal else np.full(b - a, -1, np.int64)
             hold = reprojected_hold(prev, history.noise_hold) if history is not None else None
@@ -127,8 +147,10 @@ class ReSTIRGI:
                 direct += d
             direct /= max(1, settings.samples)
             finalize(initial, target_at(initial, part.p, part.ng, part.n))
+            t = spent("initial", t)
             temporal = temporal_resample(initial, part, history, prev, samplers.uniform(seeds[a:b], 5),
                                          settings.temporal_M_cap, settings.max_age, biased)
+            spent("temporal", t)
             return prev, hold, direct, temporal
 
         prev_pix, hold, direct, temporal = concat_rows(ctx.workers.map(new_samples, n))
@@ -141,6 +163,7 @@ class ReSTIRGI:
         carry = settings.spatial and history is not None and bool((prev_pix >= 0).any())
 
         def reuse(a, b):
+            t = time.perf_counter()
             if not settings.spatial:
                 spatial, visible_own = temporal.rows(a, b), None
             else:
@@ -156,7 +179,10 @@ class ReSTIRGI:
                 spatial, visible_own = spatial_resample(
                     ctx, gb, temporal, prev_spatial, prev_owner, seeds, settings.spatial_neighbors,
                     settings.spatial_radius, biased, rows=(a, b))
-            return spatial, visible_own, shade_indirect(ctx, gb.part(a, b), spatial, visible_own)
+            t = spent("spatial", t)
+            indirect = shade_indirect(ctx, gb.part(a, b), spatial, visible_own)
+            spent("shading", t)
+            return spatial, visible_own, indirect
 
         spatial, _, indirect = concat_rows(ctx.workers.map(reuse, n))
         direct_total = gb.emission + direct
@@ -170,6 +196,8 @@ class ReSTIRGI:
             signature=_signature(scene), temporal=temporal, spatial=spatial,
             noise_hold=update_noise_hold(direct, gb.valid, gb.width, gb.height, hold))
         self.frames += 1
+        timings["total"] = time.perf_counter() - t_start
+        self.last_timings = timings
         found = float((prev_pix[gb.index] >= 0).mean()) if len(gb.index) else 0.0
         return FrameResult(color, direct_total, indirect, gb.depth, gb.n, gb.albedo,
                            spatial.M.copy(), spatial.W.copy(), found)

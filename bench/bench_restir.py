@@ -1,0 +1,64 @@
+"""Where a ReSTIR GI frame spends its time, next to a 1 spp path-traced frame.
+
+    .venv/bin/python bench/bench_restir.py [--blend ...] [--bounces 2] [--frames 12]
+
+For one and two worker threads: median ms per pass over --frames frames of a
+warmed-up static view (ReSTIRGI.last_timings: wall time for the G-buffer and
+the whole frame, summed worker time for the passes the workers run), and the
+1 spp path-traced frame timed between them, with the ratio of the medians.
+"""
+
+import argparse
+import statistics
+import sys
+import time
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from bench_common import ROOT, export_blend, load_addon  # noqa: E402
+
+PASSES = ("gbuffer", "initial", "temporal", "spatial", "shading", "validation", "total")
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--blend", default=str(ROOT / "example_blends" / "room_indirect.blend"))
+    ap.add_argument("--bounces", type=int, default=2)
+    ap.add_argument("--frames", type=int, default=12)
+    ap.add_argument("--mode", default="RESTIR_BIASED")
+    args = ap.parse_args()
+
+    load_addon()
+    from restir_gi.core import RenderContext, RenderSettings, render_frame
+    from restir_gi.core.restir import ReSTIRGI, ReSTIRSettings
+
+    scene = export_blend(args.blend)
+    scene.filter_width = 0.0
+    print(f"{Path(args.blend).name} {scene.width}x{scene.height}, {args.mode}, max_bounces "
+          f"{args.bounces}, medians of {args.frames} frames (ms)\n")
+    print("| threads | " + " | ".join(PASSES) + " | PT 1 spp | ReSTIR / PT |")
+    print("|---:|" + "---:|" * (len(PASSES) + 2))
+    for threads in (1, 2):
+        ctx = RenderContext.build(scene, threads=threads)
+        restir = ReSTIRGI()
+        settings = ReSTIRSettings(mode=args.mode, max_bounces=args.bounces, seed=1)
+        for f in range(4):
+            restir.render_frame(ctx, settings, f)
+        rows = {name: [] for name in PASSES}
+        pt = []
+        for f in range(4, 4 + args.frames):
+            restir.render_frame(ctx, settings, f)
+            for name in PASSES:
+                rows[name].append(restir.last_timings[name])
+            t0 = time.perf_counter()
+            render_frame(ctx, RenderSettings(samples=1, max_bounces=args.bounces, seed=f))
+            pt.append(time.perf_counter() - t0)
+        ctx.close()
+        med = {name: statistics.median(v) * 1000 for name, v in rows.items()}
+        t_pt = statistics.median(pt) * 1000
+        print(f"| {threads} | " + " | ".join(f"{med[name]:.0f}" for name in PASSES)
+              + f" | {t_pt:.0f} | {med['total'] / t_pt:.2f}x |")
+
+
+if __name__ == "__main__":
+    main()
