@@ -131,17 +131,18 @@ def spatial_resample(ctx, gb, temporal, prev_spatial, prev_owner_p, seeds, k, ra
     else:
         z = np.zeros(n, np.float32)
         for _src, _rows, _w, m_i, x1_i, ng_i, ns_i, x1_from in candidates:
-            if x1_i is p:
-                if own_visible is None:
-                    own_visible = visible(ctx, p, ng, nrm, res)
-                vis = own_visible
-            else:       # only reservoirs that count in Z need a ray
-                vis = visible(ctx, x1_i, ng_i, ns_i, res, where=m_i > 0)
+            counts = m_i > 0
             if x1_from is not None:
                 # A reservoir could have given the sample here only if its shift
                 # is accepted: shift_weight rejects J outside [J_MIN, J_MAX].
                 j = jacobian(x1_from, p, res.x2, res.ng2)
-                vis = vis & (j >= J_MIN) & (j <= J_MAX)
+                counts &= (j >= J_MIN) & (j <= J_MAX)
+            if x1_i is p:
+                if own_visible is None:
+                    own_visible = visible(ctx, p, ng, nrm, res)
+                vis = own_visible & counts
+            else:       # only reservoirs that count in Z need a ray
+                vis = visible(ctx, x1_i, ng_i, ns_i, res, where=counts)
             z += np.where(vis, m_i, 0.0)
         finalize(res, p_hat, z)
         # res.M stays the sum of the candidates' M: a confidence that does not
