@@ -373,7 +373,7 @@ def test11_objects_added_and_removed(vp, recorder):
 def test12_thread_renders_and_close_frees(vp, recorder):
     import bpy
     build_scene()
-    session = new_session(vp, mode="RESTIR_BIASED", idle_frames=10_000)
+    session = new_session(vp, mode="RESTIR_BIASED", idle_frames=10_000, threads=2)
     session.resize(160, 120)
     session.start()
     assert session.wait_for_frame(timeout=60)
@@ -384,6 +384,8 @@ def test12_thread_renders_and_close_frees(vp, recorder):
     assert session.wait_for_frame(session.generation, timeout=60)
     assert session.error is None
     assert session.nbytes > 0
+    workers = session._ctx.workers
+    assert workers.threads == 2 and workers._pool is not None     # frames use both cores
     # Closing abandons the frame in progress at its next ray batch.
     t0 = time.perf_counter()
     assert session.close(timeout=10)
@@ -392,6 +394,7 @@ def test12_thread_renders_and_close_frees(vp, recorder):
     assert closed_in < max(0.5, 0.5 * session.last_frame_seconds)
     assert session.frame is None and session.accel is None and session.restir.history is None
     assert session.nbytes == 0
+    assert workers._pool is None                                  # its threads are gone
 
 
 def test13_idle_thread_does_no_work(vp):
