@@ -12,7 +12,7 @@ two-thread split would only oversubscribe the cores.
 
 import os
 import threading
-from concurrent.futures import ThreadPoolExecutor
+from concurrent.futures import ThreadPoolExecutor, wait
 
 import numpy as np
 
@@ -49,6 +49,9 @@ class Workers:
         if len(parts) == 1 or in_worker():
             return [fn(a, b) for a, b in parts]
         futures = [self._pool.submit(fn, a, b) for a, b in parts]
+        # Every range finishes (or fails) before this returns or raises: a
+        # worker must never outlive the call and trace into a freed scene.
+        wait(futures)
         return [f.result() for f in futures]
 
     def close(self):

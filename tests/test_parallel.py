@@ -55,3 +55,25 @@ def test03_restir_is_the_same_on_two_workers(contexts, mode):
     assert a.history_found > 0.5
     for field in ("color", "direct", "indirect", "M", "W"):
         assert np.array_equal(getattr(a, field), getattr(b, field)), field
+
+
+def test04_a_failing_range_waits_for_the_others():
+    """An exception in one range (a cancelled trace) is raised only after every
+    other range has finished, so nothing runs on after the call."""
+    import threading
+    import time as _time
+    finished = []
+    workers = Workers(2)
+    try:
+        def fn(a, b):
+            if a == 0:
+                raise RuntimeError("cancelled")
+            _time.sleep(0.2)
+            finished.append(threading.current_thread().name)
+            return b - a
+
+        with pytest.raises(RuntimeError, match="cancelled"):
+            workers.map(fn, 4 * MIN_PIXELS_PER_WORKER)
+        assert len(finished) == 1
+    finally:
+        workers.close()
