@@ -318,3 +318,36 @@ def test10_validation_is_skipped_while_nothing_changes():
         assert restir.validations == 1
     finally:
         ctx.close()
+
+
+def test11_validation_traces_shared_samples_once():
+    """Temporal and spatial reservoirs share many samples: validating both in
+    one call drops exactly what two calls drop, with fewer rays."""
+    from core.restir.validation import validate
+    scene = sharp(cornell_box("area", 16, 16))
+    settings = ReSTIRSettings(seed=8, validation_interval=0, max_bounces=2)
+    restir = ReSTIRGI()
+    ctx = RenderContext.build(scene)
+    try:
+        for f in range(6):
+            restir.render_frame(ctx, settings, f)
+    finally:
+        ctx.close()
+    ctx = RenderContext.build(lights_off(scene))
+    try:
+        h = restir.history
+        apart = [h.temporal.copy(), h.spatial.copy()]
+        together = [h.temporal.copy(), h.spatial.copy()]
+        rays0 = ctx.accel.rays_traced
+        dropped_apart = validate(ctx, apart[0], 2) + validate(ctx, apart[1], 2)
+        rays1 = ctx.accel.rays_traced
+        dropped_together = validate(ctx, together, 2)
+        rays2 = ctx.accel.rays_traced
+    finally:
+        ctx.close()
+    assert dropped_apart == dropped_together > 0
+    for a, b in zip(apart, together):
+        assert np.array_equal(a.M, b.M)
+    shared = np.intersect1d(h.temporal.seed[h.temporal.prim2 >= 0], h.spatial.seed[h.spatial.prim2 >= 0])
+    assert len(shared) > 0
+    assert rays2 - rays1 < rays1 - rays0

@@ -122,8 +122,7 @@ class ReSTIRGI:
             self._stale |= self._lighting_key is not None and key != self._lighting_key
             self._lighting_key = key
             if history is not None and self._stale and self.frames % settings.validation_interval == 0:
-                validate(ctx, history.temporal, settings.max_bounces)
-                validate(ctx, history.spatial, settings.max_bounces)
+                validate(ctx, [history.temporal, history.spatial], settings.max_bounces)
                 self.validations += 1
                 self._stale = False
         spent("validation", t)

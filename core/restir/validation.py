@@ -20,31 +20,51 @@ CHANGE_THRESHOLD = 0.25     # relative change of luminance that invalidates a sa
 
 
 def validate(ctx, res, max_bounces, threshold=CHANGE_THRESHOLD):
-    """Re-trace every valid sample of ``res``; drop the changed ones in place.
-    Returns the number of reservoirs dropped."""
-    sky = np.nonzero((res.prim2 == res.WORLD_SAMPLE) & (res.M > 0))[0]
-    changed_sky = np.zeros(0, np.int64)
-    if len(sky):
-        old = luminance(res.lo[sky])
-        new = luminance(np.broadcast_to(ctx.scene.world_color, (len(sky), 3)))
-        changed_sky = sky[np.abs(new - old) > threshold * np.maximum(np.maximum(old, new), 1e-6)]
-        res.M[changed_sky] = res.W[changed_sky] = res.w_sum[changed_sky] = 0
-    rows = np.nonzero((res.prim2 >= 0) & (res.M > 0))[0]
-    if len(rows) == 0 or max_bounces < 1:
-        return int(len(changed_sky))
-    def retrace(a, b):      # the paths of rows[a:b], on the context's workers
-        r = rows[a:b]
-        surf = SurfaceHits(p=gather(res.x2, r), ng=gather(res.ng2, r), ns=gather(res.n2, r),
-                           uv=np.zeros((len(r), 2), np.float32), wo=gather(res.wo2, r),
-                           prim=res.prim2[r], material=res.mat2[r], front=np.ones(len(r), bool))
-        return radiance_from_surface(ctx, surf, res.seed[r], 1, max_bounces)
+    """Re-trace every valid sample of ``res`` (Reservoirs, or a list of them);
+    drop the changed ones in place. A sample kept by several reservoirs (the
+    temporal and the spatial reservoirs share many) is traced once: its seed
+    names it. Returns the number of reservoirs dropped."""
+    sets = list(res) if isinstance(res, (list, tuple)) else [res]
+    dropped = 0
+    for r in sets:
+        sky = np.nonzero((r.prim2 == r.WORLD_SAMPLE) & (r.M > 0))[0]
+        if len(sky):
+            old = luminance(r.lo[sky])
+            new = luminance(np.broadcast_to(ctx.scene.world_color, (len(sky), 3)))
+            changed_sky = sky[_changed(old, new, threshold)]
+            r.M[changed_sky] = r.W[changed_sky] = r.w_sum[changed_sky] = 0
+            dropped += len(changed_sky)
+    rows = [np.nonzero((r.prim2 >= 0) & (r.M > 0))[0] for r in sets]
+    if sum(len(x) for x in rows) == 0 or max_bounces < 1:
+        return dropped
+    # One row per distinct sample, over all sets.
+    which = np.concatenate([np.full(len(x), i) for i, x in enumerate(rows)])
+    row = np.concatenate(rows)
+    seeds = np.concatenate([r.seed[x] for r, x in zip(sets, rows)])
+    _, first, back = np.unique(seeds, return_index=True, return_inverse=True)
 
-    lo_new = concat_rows(ctx.workers.map(retrace, len(rows)))
-    old = luminance(res.lo[rows])
-    new = luminance(lo_new)
-    changed = np.abs(new - old) > threshold * np.maximum(np.maximum(old, new), 1e-6)
-    drop = rows[changed]
-    res.M[drop] = 0
-    res.W[drop] = 0
-    res.w_sum[drop] = 0
-    return int(len(drop) + len(changed_sky))
+    def field(name, at):
+        return np.concatenate([gather(getattr(r, name), x) for r, x in zip(sets, rows)])[at]
+
+    x2, ng2, n2, wo2 = (field(name, first) for name in ("x2", "ng2", "n2", "wo2"))
+    prim2, mat2, seed = field("prim2", first), field("mat2", first), seeds[first]
+
+    def retrace(a, b):      # the paths of distinct samples a..b, on the context's workers
+        k = slice(a, b)
+        surf = SurfaceHits(p=x2[k], ng=ng2[k], ns=n2[k], uv=np.zeros((b - a, 2), np.float32),
+                           wo=wo2[k], prim=prim2[k], material=mat2[k], front=np.ones(b - a, bool))
+        return radiance_from_surface(ctx, surf, seed[k], 1, max_bounces)
+
+    lo_new = concat_rows(ctx.workers.map(retrace, len(first)))[back]
+    changed = _changed(luminance(field("lo", slice(None))), luminance(lo_new), threshold)
+    for i, r in enumerate(sets):
+        drop = row[(which == i) & changed]
+        r.M[drop] = 0
+        r.W[drop] = 0
+        r.w_sum[drop] = 0
+        dropped += len(drop)
+    return int(dropped)
+
+
+def _changed(old, new, threshold):
+    return np.abs(new - old) > threshold * np.maximum(np.maximum(old, new), 1e-6)
