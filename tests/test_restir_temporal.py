@@ -295,20 +295,26 @@ def test09_temporal_M_is_capped(mode):
     assert top[-1] == cap + samples, top
 
 
+def lit_history(size, settings, frames):
+    """A ReSTIRGI after ``frames`` frames of the lit box, and the box."""
+    scene = sharp(cornell_box("area", size, size))
+    restir = ReSTIRGI()
+    ctx = RenderContext.build(scene)
+    try:
+        for f in range(frames):
+            restir.render_frame(ctx, settings, f)
+    finally:
+        ctx.close()
+    return restir, scene
+
+
 def test10_validation_is_skipped_while_nothing_changes():
     """Re-tracing stored paths in an unchanged scene cannot change them, so
     validation only runs after the lighting changed (here: once, after the
     light is switched off), and it runs by the next interval."""
-    scene = sharp(cornell_box("area", 12, 12))
     settings = ReSTIRSettings(seed=3, validation_interval=2, max_bounces=2)
-    restir = ReSTIRGI()
-    ctx = RenderContext.build(scene)
-    try:
-        for f in range(7):
-            restir.render_frame(ctx, settings, f)
-        assert restir.validations == 0
-    finally:
-        ctx.close()
+    restir, scene = lit_history(12, settings, 7)
+    assert restir.validations == 0
     ctx = RenderContext.build(lights_off(scene))
     try:
         restir.render_frame(ctx, settings, 7)          # frame count 7: not a validation frame
@@ -324,15 +330,7 @@ def test11_validation_traces_shared_samples_once():
     """Temporal and spatial reservoirs share many samples: validating both in
     one call drops exactly what two calls drop, with fewer rays."""
     from core.restir.validation import validate
-    scene = sharp(cornell_box("area", 16, 16))
-    settings = ReSTIRSettings(seed=8, validation_interval=0, max_bounces=2)
-    restir = ReSTIRGI()
-    ctx = RenderContext.build(scene)
-    try:
-        for f in range(6):
-            restir.render_frame(ctx, settings, f)
-    finally:
-        ctx.close()
+    restir, scene = lit_history(16, ReSTIRSettings(seed=8, validation_interval=0, max_bounces=2), 6)
     ctx = RenderContext.build(lights_off(scene))
     try:
         h = restir.history

@@ -23,7 +23,7 @@ from .gbuffer import trace_gbuffer
 from .initial import COSINE, initial_samples
 from .shading import shade_indirect
 from .shift import target_at
-from .spatial import spatial_resample
+from .spatial import reuse_weights, spatial_resample
 from .temporal import FrameHistory, reproject, temporal_resample
 from .validation import validate
 
@@ -160,6 +160,7 @@ class ReSTIRGI:
         # mode carries its spatial history with the temporal cap.
         cap = settings.spatial_M_cap if biased else min(settings.spatial_M_cap, settings.temporal_M_cap)
         carry = settings.spatial and history is not None and bool((prev_pix >= 0).any())
+        lum_wm = reuse_weights(temporal) if settings.spatial else None
 
         def reuse(a, b):
             t = time.perf_counter()
@@ -177,7 +178,7 @@ class ReSTIRGI:
                     prev_owner = gather(history.p, q)
                 spatial, visible_own = spatial_resample(
                     ctx, gb, temporal, prev_spatial, prev_owner, seeds, settings.spatial_neighbors,
-                    settings.spatial_radius, biased, rows=(a, b))
+                    settings.spatial_radius, biased, rows=(a, b), lum_wm=lum_wm)
             t = spent("spatial", t)
             indirect = shade_indirect(ctx, gb.part(a, b), spatial, visible_own)
             spent("shading", t)

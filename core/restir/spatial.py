@@ -43,8 +43,15 @@ def visible(ctx, x1, ng1, ns1, res, where=None):
     return out
 
 
+def reuse_weights(temporal):
+    """luminance(Lo) W M of every temporal reservoir (0 without a sample): the
+    part of a neighbour's resampling weight that does not depend on the receiver."""
+    return np.where(temporal.has_sample, target(temporal.lo) * temporal.W * temporal.M,
+                    0.0).astype(np.float32)
+
+
 def spatial_resample(ctx, gb, temporal, prev_spatial, prev_owner_p, seeds, k, radius, biased,
-                     rows=None):
+                     rows=None, lum_wm=None):
     """Spatial reservoirs of this frame, and (unbiased mode) the visibility of
     each pixel's chosen sample from its own visible point, for final shading.
 
@@ -52,7 +59,8 @@ def spatial_resample(ctx, gb, temporal, prev_spatial, prev_owner_p, seeds, k, ra
     worker's share), whose own arrays are sliced from the whole-image inputs;
     neighbours come from the whole image. prev_spatial and prev_owner_p (last
     frame's spatial reservoirs reprojected, and their visible points) are
-    given for those rows only."""
+    given for those rows only. lum_wm: reuse_weights(temporal), if the caller
+    has it (workers share one)."""
     a, b = rows if rows is not None else (0, len(gb.valid))
     w, h = gb.width, gb.height
     p_all, nrm_all, ng_all = gb.p, gb.n, gb.ng
@@ -78,8 +86,8 @@ def spatial_resample(ctx, gb, temporal, prev_spatial, prev_owner_p, seeds, k, ra
     px, py = (pix % w).astype(np.float32), (pix // w).astype(np.float32)
     # Neighbours' reservoirs enter through their sample point, its normal and
     # luminance(Lo) W M: gathered per neighbour, the rest only for the winners.
-    lum_wm = np.where(temporal.has_sample, target(temporal.lo) * temporal.W * temporal.M,
-                      0.0).astype(np.float32)
+    if lum_wm is None:
+        lum_wm = reuse_weights(temporal)
     for i in range(k):
         u = samplers.uniform2(seeds, D_SPATIAL + 2 + 3 * i)
         r = radius * np.sqrt(u[:, 0])
