@@ -2,7 +2,7 @@
 
 numpy releases the GIL inside its array loops and Embree inside its queries,
 so two threads each running a pass over half of the pixels overlap well
-(bench/bench_path.py measures it). A pass is split into contiguous pixel
+(bench/bench_restir.py times one and two workers). A pass is split into contiguous pixel
 ranges; every range is computed from the same inputs with the same per-pixel
 random numbers, so the result does not depend on the number of workers.
 
