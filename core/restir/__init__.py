@@ -24,7 +24,7 @@ from .initial import COSINE, initial_samples
 from .shading import shade_indirect
 from .shift import target_at
 from .spatial import reuse_weights, spatial_resample
-from .temporal import FrameHistory, reproject, temporal_resample
+from .temporal import FrameHistory, carry_with_objects, reproject, temporal_resample
 from .validation import validate
 
 BIASED = "RESTIR_BIASED"
@@ -113,6 +113,8 @@ class ReSTIRGI:
         seeds = samplers.path_seeds(settings.seed, frame, pix, 0x5EED)
 
         history = self.history
+        if history is not None:
+            carry_with_objects(scene, history)     # samples and owners ride with moved objects
 
         # Stored samples are re-traced only if the lighting changed since the
         # last validation: in an unchanged scene a re-traced path (same seed)

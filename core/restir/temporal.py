@@ -39,16 +39,14 @@ class FrameHistory:
     noise_hold: np.ndarray = None   # (P,) int8 frames left of "direct light noisy" (adaptive_direct)
 
 
-def _motion(scene, history, object_id):
-    """Per-pixel 4x4 matrices taking current positions to last frame's, from the
-    objects' transforms (identity where an object is new or did not move)."""
+def _object_motions(scene, history):
+    """For every current object that also was in the last frame and moved:
+    {current object id: (last frame's object id, 4x4 current -> last frame)}."""
     keys, mats = scene.object_keys, scene.object_matrices
     if not keys or not history.object_keys:
-        return None
+        return {}
     prev_index = {k: i for i, k in enumerate(history.object_keys)}
-    o = len(keys)
-    motion = np.tile(np.eye(4, dtype=np.float64), (o, 1, 1))
-    moved = False
+    moved = {}
     for i, key in enumerate(keys):
         j = prev_index.get(key)
         if j is None:
@@ -56,13 +54,60 @@ def _motion(scene, history, object_id):
         cur, prev = np.asarray(mats[i], np.float64), np.asarray(history.object_matrices[j], np.float64)
         if not np.allclose(cur, prev, atol=1e-7):
             try:
-                motion[i] = prev @ np.linalg.inv(cur)
-                moved = True
+                moved[i] = (j, prev @ np.linalg.inv(cur))
             except np.linalg.LinAlgError:
                 pass
+    return moved
+
+
+def _motion(scene, history, object_id):
+    """Per-pixel 4x4 matrices taking current positions to last frame's, from the
+    objects' transforms (identity where an object is new or did not move)."""
+    moved = _object_motions(scene, history)
     if not moved:
         return None
+    motion = np.tile(np.eye(4, dtype=np.float64), (len(scene.object_keys), 1, 1))
+    for i, (_j, to_prev) in moved.items():
+        motion[i] = to_prev
     return motion[np.maximum(object_id, 0)]
+
+
+def _move_rows(m, rows, points=(), directions=(), normals=()):
+    """Apply the 4x4 m to the given rows of point, direction and normal arrays, in place."""
+    lin = m[:3, :3]
+    normal_m = np.linalg.inv(lin).T
+    for a in points:
+        a[rows] = (a[rows].astype(np.float64) @ lin.T + m[:3, 3]).astype(np.float32)
+    for mat, group in ((lin, directions), (normal_m, normals)):
+        for a in group:
+            v = a[rows].astype(np.float64) @ mat.T
+            a[rows] = (v / np.maximum(np.linalg.norm(v, axis=1, keepdims=True), 1e-30)).astype(np.float32)
+
+
+def carry_with_objects(scene, history):
+    """Move last frame's state with the objects that moved since: the visible
+    points owning the reservoirs, and the sample points (with their normals
+    and directions) lying on moved objects, so reuse reconnects to where
+    those surfaces are now. In place; a no-op when nothing moved."""
+    moved = _object_motions(scene, history)
+    if not moved or scene.triangle_count == 0:
+        return 0
+    history.p = history.p.copy()        # last frame's G-buffer array: not ours to change
+    sets = [history.temporal]
+    if not np.shares_memory(history.spatial.x2, history.temporal.x2):
+        sets.append(history.spatial)
+    count = 0
+    for i, (j, to_prev) in moved.items():
+        to_cur = np.linalg.inv(to_prev)
+        owners = np.nonzero(history.object_id == j)[0]
+        if len(owners):
+            _move_rows(to_cur, owners, points=(history.p,))
+        for res in sets:
+            on = np.nonzero((res.prim2 >= 0) & (np.take(scene.object_ids, np.maximum(res.prim2, 0)) == i))[0]
+            if len(on):
+                _move_rows(to_cur, on, points=(res.x2,), directions=(res.wo2,), normals=(res.ng2, res.n2))
+                count += len(on)
+    return count
 
 
 def reproject(scene, gb, history):
