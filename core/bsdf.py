@@ -13,8 +13,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .rows import gather, scale, scatter, scatter_add
-from .sampling import (INV_PI, cosine_hemisphere_pdf, divide_rows, dot, luminance,
+from .rows import divide, gather, scale, scatter, scatter_add
+from .sampling import (INV_PI, cosine_hemisphere_pdf, dot, luminance,
                        square_to_cosine_hemisphere)
 
 ALPHA_MIN = np.float32(1e-3)
@@ -126,7 +126,7 @@ def schlick(f0, cos):
 def _half(wo, wi):
     h = wo + wi
     n = np.sqrt(dot(h, h))
-    return divide_rows(h, np.where(n > 0, n, 1).astype(n.dtype, copy=False))
+    return divide(h, np.where(n > 0, n, 1).astype(n.dtype, copy=False))
 
 
 def _spec_pdf(wo, h, alpha):

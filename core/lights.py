@@ -22,8 +22,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .rows import gather, matmul3, rows_finite, scale, scatter, scatter_add
-from .sampling import (Distribution1D, divide_rows, dot, luminance, orthonormal_basis,
+from .rows import divide, gather, matmul3, rows_finite, scale, scatter, scatter_add
+from .sampling import (Distribution1D, dot, luminance, orthonormal_basis,
                        power_heuristic, square_to_concentric_disk, square_to_uniform_cone,
                        square_to_uniform_triangle, to_world)
 from .scene import (LIGHT_AREA, LIGHT_POINT, LIGHT_SPOT, LIGHT_SUN, SHAPE_DISK,
@@ -70,17 +70,10 @@ def _per_row(table, li, one):
     return table[one:one + 1] if one is not None else gather(table, li)
 
 
-def _times_rows(a, s):
-    """a * s[:, None] for (N, 3) or broadcasting (1, 3) rows a (core/rows.py scale)."""
-    return scale(a, s) if len(a) == len(s) else a * s[:, None]
-
-
 def _rows_where(mask, rows):
     """np.where(mask[:, None], rows, 0) as float32 (N, 3), as a product with the
     0/1 mask: the same for finite rows and several times faster than np.where."""
-    if len(rows) == len(mask):
-        return scale(rows, mask).astype(np.float32, copy=False)
-    return (mask.astype(np.float32)[:, None] * rows).astype(np.float32, copy=False)
+    return scale(rows, mask.astype(np.float32)).astype(np.float32, copy=False)
 
 
 def _empty_sample(n):
@@ -237,7 +230,7 @@ class LightSet:
         to_c = c - p
         d2 = np.maximum(dot(to_c, to_c), 1e-20)
         d = np.sqrt(d2)
-        axis = divide_rows(to_c, d).astype(np.float32, copy=False)
+        axis = divide(to_c, d).astype(np.float32, copy=False)
         r2 = r * r
         outside = d2 > r2 * 1.0001
         return one, r, to_c, d2, d, axis, r2, outside
@@ -278,7 +271,7 @@ class LightSet:
         to_q += scale(b, xy[:, 1])
         dq2 = np.maximum(dot(to_q, to_q), 1e-20)
         dq = np.sqrt(dq2)
-        wi = divide_rows(to_q, dq).astype(np.float32, copy=False)
+        wi = divide(to_q, dq).astype(np.float32, copy=False)
         cos_q = np.maximum(dot(wi, axis), 1e-12)
         pdf = dq2 / (cos_q * np.pi * np.maximum(r2, 1e-30))
         rad = self._outside_only(self._sphere_radiance(li, one, wi, r2), outside, len(p))
@@ -358,7 +351,7 @@ class LightSet:
         to_q = q - p
         d2 = np.maximum(dot(to_q, to_q), 1e-20)
         d = np.sqrt(d2)
-        wi = divide_rows(to_q, d).astype(np.float32, copy=False)
+        wi = divide(to_q, d).astype(np.float32, copy=False)
         cos_l = -dot(wi, _per_row(lt.direction, li, one))       # > 0 on the emitting side
         radiance = _per_row(lt.power, li, one) / (np.pi * area)[:, None]
         front = cos_l > 0
@@ -370,12 +363,12 @@ class LightSet:
         slot = li - self.n_analytic
         one = _same_index(slot)
         b1, b2 = square_to_uniform_triangle(u)
-        q = (_per_row(self.tri_p0, slot, one) + _times_rows(_per_row(self.tri_e1, slot, one), b1)
-             + _times_rows(_per_row(self.tri_e2, slot, one), b2))
+        q = (_per_row(self.tri_p0, slot, one) + scale(_per_row(self.tri_e1, slot, one), b1)
+             + scale(_per_row(self.tri_e2, slot, one), b2))
         to_q = q - p
         d2 = np.maximum(dot(to_q, to_q), 1e-20)
         d = np.sqrt(d2)
-        wi = divide_rows(to_q, d).astype(np.float32, copy=False)
+        wi = divide(to_q, d).astype(np.float32, copy=False)
         cos_l = -dot(wi, _per_row(self.tri_normal, slot, one))
         visible_side = np.abs(cos_l) > 1e-7 if self.two_sided else cos_l > 1e-7
         pdf = np.where(visible_side, d2 / np.maximum(np.abs(cos_l), 1e-12) / _per_row(self.tri_area, slot, one), 0.0)
@@ -431,7 +424,7 @@ class LightSet:
                 hit = (den < 0) & (t > 0) & (t < tmax)
                 if not hit.any():
                     continue
-                q = o + _times_rows(d, t) - lt.position[li]
+                q = o + scale(d, t) - lt.position[li]
                 x = matmul3(q, lt.axis_u[li]) / lt.size_u[li]
                 y = matmul3(q, lt.axis_v[li]) / lt.size_v[li]
                 inside = (x * x + y * y <= 0.25) if self.ellipse[li] else ((np.abs(x) <= 0.5) & (np.abs(y) <= 0.5))
@@ -446,11 +439,11 @@ class LightSet:
                 d2 = np.maximum(dot(oc, oc), 1e-20)
                 if lt.soft_falloff[li]:
                     # Disk through c facing the ray origin.
-                    nrm = divide_rows(-oc, np.sqrt(d2))
+                    nrm = divide(-oc, np.sqrt(d2))
                     den = dot(d, nrm)
                     # (c - o) . nrm = -|c - o| and den < 0, so t > 0 in front of the ray.
                     t = dot(oc, nrm) / np.where(den < 0, den, -1.0)
-                    q = o + _times_rows(d, t) - c
+                    q = o + scale(d, t) - c
                     hit = (den < 0) & (t > 0) & (t < tmax) & (dot(q, q) <= r * r)
                     pdf_light = pmf * t * t / (np.maximum(-den, 1e-12) * np.pi * r * r)
                 else:

@@ -22,6 +22,18 @@ class RenderSettings:
 CHUNK_PIXELS = 1 << 16     # pixels per batch: bounds memory and the latency of a cancel
 
 
+def path_trace_pixels(ctx, seed, frame, sample, max_bounces, pixel_filter, start, stop):
+    """One path-traced sample of the pixels [start, stop), split over the
+    context's workers (PassResult of those rows)."""
+    w, h = ctx.scene.width, ctx.scene.height
+
+    def part(lo, hi):
+        return camera_pass(ctx, w, h, seed, frame, sample, max_bounces, pixel_filter,
+                           pixels=np.arange(start + lo, start + hi))
+
+    return concat_rows(ctx.workers.map(part, stop - start))
+
+
 def render_frame(ctx, settings, frame=0, on_sample=None, should_stop=None):
     """Path-trace ``settings.samples`` passes of the whole image into a Film.
 
@@ -44,12 +56,8 @@ def render_frame(ctx, settings, frame=0, on_sample=None, should_stop=None):
             if should_stop is not None and should_stop():
                 return film
             chunk = min(CHUNK_PIXELS, n - a)
-
-            def part(lo, hi, a=a):
-                return camera_pass(ctx, w, h, settings.seed, frame, s, settings.max_bounces,
-                                   pixel_filter, pixels=np.arange(a + lo, a + hi))
-
-            res = concat_rows(ctx.workers.map(part, chunk))
+            res = path_trace_pixels(ctx, settings.seed, frame, s, settings.max_bounces,
+                                    pixel_filter, a, a + chunk)
             rows = slice(a, a + chunk)
             color[rows], depth[rows], normal[rows], albedo[rows] = res.color, res.depth, res.normal, res.albedo
         film.add(color, depth=depth, normal=normal, albedo=albedo)

@@ -50,12 +50,25 @@ def rows_finite(a):
 
 
 
-def scale(a, s):
-    """a * s[:, None] for an (N, 3) array and (N,) factors, column by column."""
+def _by_column(op, a, s):
+    """op(a, s[:, None]) for an (N, k) array and (N,) values, column by column."""
+    a, s = np.asarray(a), np.asarray(s)
+    if a.ndim != 2 or s.ndim != 1 or len(a) != len(s):
+        return op(a, s[:, None])
     out = np.empty(a.shape, np.result_type(a.dtype, s.dtype))
     for k in range(a.shape[1]):
-        np.multiply(a[:, k], s, out=out[:, k])
+        op(a[:, k], s, out=out[:, k])
     return out
+
+
+def scale(a, s):
+    """a * s[:, None] for an (N, 3) array and (N,) factors."""
+    return _by_column(np.multiply, a, s)
+
+
+def divide(a, s):
+    """a / s[:, None] for an (N, 3) array and (N,) divisors."""
+    return _by_column(np.divide, a, s)
 
 
 def matmul3(a, m):

@@ -7,7 +7,7 @@ arrays: ``u`` is ``(N, 2)`` float32 in [0, 1), directions are ``(N, 3)``.
 
 import numpy as np
 
-from .rows import scale
+from .rows import divide, scale
 
 INV_PI = np.float32(1.0 / np.pi)
 INV_2PI = np.float32(0.5 / np.pi)
@@ -26,21 +26,10 @@ def dot(a, b):
     return ab[:, 0] + ab[:, 1] + ab[:, 2]
 
 
-def divide_rows(a, s):
-    """a / s[:, None] for an (N, 3) array and (N,) divisors, column by column."""
-    a, s = np.asarray(a), np.asarray(s)
-    if a.ndim != 2 or s.ndim != 1 or len(a) != len(s):
-        return a / s[:, None]
-    out = np.empty(a.shape, np.result_type(a.dtype, s.dtype))
-    for k in range(a.shape[1]):
-        np.divide(a[:, k], s, out=out[:, k])
-    return out
-
-
 def normalize(v):
     """Row-wise normalisation; zero vectors stay zero instead of turning NaN."""
     n = np.sqrt(dot(v, v))
-    return divide_rows(v, np.where(n > 0, n, 1).astype(v.dtype, copy=False))
+    return divide(v, np.where(n > 0, n, 1).astype(v.dtype, copy=False))
 
 
 def luminance(rgb):

@@ -42,9 +42,8 @@ from ..core.dynamic_accel import DynamicAccel, TraceInterrupted
 from ..core.film import to_rgba
 from ..core.integrators.base import RAY_EPS_RELATIVE, RenderContext
 from ..core.parallel import Workers
-from ..core.integrators.path import camera_pass
 from ..core.lights import LightSet
-from ..core.render import CHUNK_PIXELS
+from ..core.render import CHUNK_PIXELS, path_trace_pixels
 from ..core.restir import ReSTIRGI, ReSTIRSettings
 from ..core.scene import Camera, Lights, Materials, Scene
 from .export import MaterialTable, Warnings, instance_key, row_signature
@@ -723,18 +722,13 @@ class ViewportSession:
         """One path-traced sample per pixel, in batches (an abandon is noticed
         between them through the accel)."""
         scene = self._scene
-        w, h = scene.width, scene.height
-        n = w * h
+        n = scene.width * scene.height
         color = np.zeros((n, 3), np.float32)
         pixel_filter = PixelFilter(scene.filter_width)
         for a in range(0, n, CHUNK_PIXELS):
-            chunk = min(CHUNK_PIXELS, n - a)
-
-            def part(lo, hi, a=a):
-                return camera_pass(self._ctx, w, h, self.seed, 0, sample, self.max_bounces,
-                                   pixel_filter, pixels=np.arange(a + lo, a + hi)).color
-
-            color[a:a + chunk] = np.concatenate(self._ctx.workers.map(part, chunk))
+            stop = min(a + CHUNK_PIXELS, n)
+            color[a:stop] = path_trace_pixels(self._ctx, self.seed, 0, sample, self.max_bounces,
+                                              pixel_filter, a, stop).color
         return color
 
     # ------------------------------------------------------------------ thread
