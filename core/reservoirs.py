@@ -32,6 +32,11 @@ class SampleView:
     def has_sample(self):
         return self.prim2 != Reservoirs.NO_SAMPLE
 
+    def view(self, index):
+        """The rows at an index array (copies)."""
+        return SampleView(*(gather(a, index) for a in (self.x2, self.ng2, self.lo)),
+                          *(np.take(a, index) for a in (self.prim2, self.W, self.M)))
+
 
 @dataclass
 class Reservoirs:

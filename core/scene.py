@@ -170,20 +170,31 @@ class Scene:
         lo, hi = self.bounds()
         return max(float(np.linalg.norm(hi - lo)), 1e-3)
 
-    def lighting_key(self):
+    def geometry_key(self):
+        """A digest of the triangles and where they are: equal keys mean every
+        ray hits what it hit before (visibility is unchanged)."""
+        return _digest([self.vertices, self.triangles])
+
+    def lighting_key(self, geometry_key=None):
         """A digest of everything that decides the light leaving a surface point
         (geometry, materials, lights, world), but not the camera or the image:
         equal keys mean a path traced again with the same seed gives the same
-        radiance."""
-        h = hashlib.sha1()   # a change detector, not a security measure; SHA-NI makes it fast
-        arrays = [self.vertices, self.triangles, self.normals, self.material_ids, self.world_color]
+        radiance. geometry_key: this scene's, if the caller has it."""
+        arrays = [self.normals, self.material_ids, self.world_color]
         arrays += [getattr(self.materials, f.name) for f in fields(Materials) if f.name != "names"]
         arrays += [getattr(self.lights, f.name) for f in fields(Lights) if f.name != "names"]
-        for a in arrays:
-            a = np.ascontiguousarray(a)
-            h.update(str((a.dtype.str, a.shape)).encode())
-            h.update(a.data)
-        return h.digest()
+        return _digest(arrays, geometry_key or self.geometry_key())
+
+
+def _digest(arrays, prefix=b""):
+    """SHA-1 of the arrays' types, shapes and bytes: a change detector, not a
+    security measure (SHA-NI makes it fast)."""
+    h = hashlib.sha1(prefix)
+    for a in arrays:
+        a = np.ascontiguousarray(a)
+        h.update(str((a.dtype.str, a.shape)).encode())
+        h.update(a.data)
+    return h.digest()
 
 
 def make_scene(vertices, triangles, material_ids=None, materials=None, lights=None,

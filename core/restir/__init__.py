@@ -21,7 +21,7 @@ from .adaptive_direct import light_sample_counts, reprojected_hold, update_noise
 from ..reservoirs import finalize, merge
 from .gbuffer import trace_gbuffer
 from .initial import COSINE, initial_samples
-from .shading import shade_indirect
+from .shading import carried_visibility, shade_indirect
 from .shift import target_at
 from .spatial import reuse_weights, spatial_resample
 from .temporal import FrameHistory, carry_with_objects, reproject, temporal_resample
@@ -76,6 +76,7 @@ class ReSTIRGI:
         self.validations = 0        # sample validations run (skipped while nothing changed)
         self.last_timings = {}      # seconds per pass of the last frame (see render_frame)
         self._lighting_key = None   # Scene.lighting_key of the last frame
+        self._geometry_key = None   # Scene.geometry_key of the last frame
         self._stale = False         # the lighting changed since the last validation
 
     @property
@@ -84,7 +85,8 @@ class ReSTIRGI:
         if h is None:
             return 0
         return h.temporal.nbytes + h.spatial.nbytes + sum(
-            a.nbytes for a in (h.p, h.n, h.ng, h.depth, h.valid, h.object_id, h.noise_hold))
+            a.nbytes for a in (h.p, h.n, h.ng, h.depth, h.valid, h.object_id, h.noise_hold,
+                                h.visibility) if a is not None)
 
     def render_frame(self, ctx, settings, frame):
         """One frame. Afterwards ``last_timings`` holds seconds per pass: wall
@@ -119,8 +121,13 @@ class ReSTIRGI:
         # Stored samples are re-traced only if the lighting changed since the
         # last validation: in an unchanged scene a re-traced path (same seed)
         # gives exactly its stored radiance.
+        geometry_key = scene.geometry_key()
+        # Last frame's traced visibility is reused only if no triangle moved.
+        static = history is not None and history.visibility is not None \
+            and geometry_key == self._geometry_key
+        self._geometry_key = geometry_key
         if settings.validation_interval > 0:
-            key = scene.lighting_key()
+            key = scene.lighting_key(geometry_key)
             self._stale |= self._lighting_key is not None and key != self._lighting_key
             self._lighting_key = key
             if history is not None and self._stale and self.frames % settings.validation_interval == 0:
@@ -166,6 +173,7 @@ class ReSTIRGI:
 
         def reuse(a, b):
             t = time.perf_counter()
+            known = None
             if not settings.spatial:
                 spatial, visible_own = temporal.rows(a, b), None
             else:
@@ -178,15 +186,18 @@ class ReSTIRGI:
                     prev_spatial.age += 1
                     prev_spatial.M[prev_spatial.age > settings.max_age] = 0
                     prev_owner = gather(history.p, q)
-                spatial, visible_own = spatial_resample(
+                spatial, visible_own, from_prev = spatial_resample(
                     ctx, gb, temporal, prev_spatial, prev_owner, seeds, settings.spatial_neighbors,
                     settings.spatial_radius, biased, rows=(a, b), lum_wm=lum_wm)
+                if carry and static and visible_own is None:
+                    known = carried_visibility(np.take(history.visibility, q), from_prev, prev_owner,
+                                               gb.p[a:b], spatial.x2)
             t = spent("spatial", t)
-            indirect = shade_indirect(ctx, gb.part(a, b), spatial, visible_own)
+            indirect, visibility = shade_indirect(ctx, gb.part(a, b), spatial, visible_own, known)
             spent("shading", t)
-            return spatial, visible_own, indirect
+            return spatial, visibility, indirect
 
-        spatial, _, indirect = concat_rows(ctx.workers.map(reuse, n))
+        spatial, visibility, indirect = concat_rows(ctx.workers.map(reuse, n))
         direct_total = gb.emission + direct
         color = direct_total + indirect
         np.nan_to_num(color, copy=False, nan=0.0, posinf=0.0, neginf=0.0)
@@ -195,7 +206,7 @@ class ReSTIRGI:
             width=gb.width, height=gb.height, camera=scene.camera, p=gb.p, n=gb.n,
             ng=gb.ng, depth=gb.depth, valid=gb.valid, object_id=gb.object_id,
             object_keys=list(scene.object_keys), object_matrices=np.asarray(scene.object_matrices),
-            signature=_signature(scene), temporal=temporal, spatial=spatial,
+            signature=_signature(scene), temporal=temporal, spatial=spatial, visibility=visibility,
             noise_hold=update_noise_hold(direct, gb.valid, gb.width, gb.height, hold))
         self.frames += 1
         timings["total"] = time.perf_counter() - t_start

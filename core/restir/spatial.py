@@ -52,8 +52,9 @@ def reuse_weights(temporal):
 
 def spatial_resample(ctx, gb, temporal, prev_spatial, prev_owner_p, seeds, k, radius, biased,
                      rows=None, lum_wm=None):
-    """Spatial reservoirs of this frame, and (unbiased mode) the visibility of
-    each pixel's chosen sample from its own visible point, for final shading.
+    """Spatial reservoirs of this frame; (unbiased mode) the visibility of each
+    pixel's chosen sample from its own visible point, for final shading; and
+    where the chosen sample is last frame's spatial reservoir's.
 
     rows: the (start, stop) range of pixels to resample (all by default; a
     worker's share), whose own arrays are sliced from the whole-image inputs;
@@ -156,4 +157,4 @@ def spatial_resample(ctx, gb, temporal, prev_spatial, prev_owner_p, seeds, k, ra
         # res.M stays the sum of the candidates' M: a confidence that does not
         # depend on which sample was chosen. Setting it to Z (which does) makes
         # next frame's MIS weights correlate with the sample, a bias.
-    return res, own_visible
+    return res, own_visible, from_prev

@@ -37,6 +37,7 @@ class FrameHistory:
     temporal: Reservoirs
     spatial: Reservoirs
     noise_hold: np.ndarray = None   # (P,) int8 frames left of "direct light noisy" (adaptive_direct)
+    visibility: np.ndarray = None   # (P,) int8 spatial samples' visibility states (shading.py)
 
 
 def _object_motions(scene, history):
