@@ -72,10 +72,10 @@ DEFAULT_SETTLE_FRAMES = 8       # frames without edits before moved objects rejo
 _FINER_BELOW = 0.7
 _COARSER_ABOVE = 1.3
 
-# An edit arriving this early in a frame (fraction of the last frame time)
-# abandons it and starts over with the edit; never two frames in a row, so a
-# continuous drag still gets frames out.
-RESTART_FRACTION = 0.5
+# An edit abandons the frame in progress and starts over with it: the frame
+# would show the scene before the edit, and finishing it only delays the one
+# the user waits for (bench/bench_viewport.py, "threaded"). Never two frames in
+# a row, so a continuous drag still gets frames out.
 
 
 @dataclass
@@ -252,11 +252,8 @@ class ViewportSession:
 
     def _queue(self, abandon=False, **changes):
         """Merge changes into the pending set and wake the render thread. An
-        edit early in the frame in progress abandons it (see RESTART_FRACTION)."""
-        started = self._frame_started
-        if (not abandon and started is not None and not self._frame_is_restart
-                and self.last_frame_seconds is not None
-                and time.perf_counter() - started < RESTART_FRACTION * self.last_frame_seconds):
+        edit abandons the frame in progress unless that frame is itself a restart."""
+        if self._frame_started is not None and not self._frame_is_restart:
             abandon = True
         with self._cond:
             p = self._pending
