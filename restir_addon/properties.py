@@ -67,6 +67,11 @@ class RestirGISceneSettings(bpy.types.PropertyGroup):
         description="ReSTIR GI: shadow rays per frame for the direct light of pixels whose direct "
                     "light was noisy last frame (penumbrae, several lights); other pixels get one",
     )
+    boiling_filter: FloatProperty(
+        name="Boiling Filter", default=0.2, min=0.0, max=1.0, subtype="FACTOR",
+        description="Empty reservoirs far brighter than their 16x16 pixel neighbourhood, so one rare "
+                    "bright path does not spread into a blotch that lasts for frames (biased mode; 0: off)",
+    )
     viewport_scale: EnumProperty(
         name="Viewport Resolution",
         items=(("AUTO", "Automatic", "Pick the resolution scale from the frame time budget"),

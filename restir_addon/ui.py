@@ -64,6 +64,7 @@ class RESTIR_RENDER_PT_resampling(RestirButtonsPanel, bpy.types.Panel):
         col.prop(s, "spatial_neighbors")
         col.prop(s, "spatial_radius")
         col.prop(s, "spatial_m_cap")
+        layout.prop(s, "boiling_filter")
         layout.prop(s, "validation_interval")
 
 

@@ -471,13 +471,16 @@ def test15_edit_restarts_the_frame(vp):
     session.start()
     assert session.wait_for_frame(timeout=60)
     assert session.wait_for_frame(session.generation, timeout=60)
-    frame_s = session.last_frame_seconds
     camera = session.view
     for i, late in enumerate((0.1, 0.4, 0.7)):
         serial = session.frame_serial
         while session.frame_serial == serial:       # just after a frame came out
             time.sleep(0.001)
-        time.sleep(late * frame_s)                  # early or late in the next one
+        while True:                                 # early or late in the next one
+            started = session._frame_started
+            if started is not None and time.perf_counter() - started >= late * session.last_frame_seconds:
+                break
+            time.sleep(0.001)
         session.set_view(dataclasses.replace(camera, lens=camera.lens * (1.01 + 0.01 * i)))
         assert session.wait_for_frame(session.generation, timeout=60)
     assert session.error is None

@@ -19,6 +19,7 @@ from ..parallel import concat_rows
 from ..rows import gather
 from .adaptive_direct import light_sample_counts, reprojected_hold, update_noise_hold
 from ..reservoirs import finalize, merge
+from .boiling import boiling_filter
 from .gbuffer import trace_gbuffer
 from .initial import COSINE, initial_samples
 from .shading import carried_visibility, shade_indirect
@@ -46,6 +47,7 @@ class ReSTIRSettings:
     spatial_neighbors: int = 4
     spatial_radius: float = 16.0    # pixels
     validation_interval: int = 4    # frames; 0 turns validation off
+    boiling_filter: float = 0.2     # strength (boiling.py), biased mode only; 0 turns it off
     light_samples: int = 16         # shadow rays for the direct light of visible points in
                                     # penumbrae (one elsewhere: adaptive_direct.py)
 
@@ -162,6 +164,8 @@ class ReSTIRGI:
             return prev, hold, direct, temporal
 
         prev_pix, hold, direct, temporal = concat_rows(ctx.workers.map(new_samples, n))
+        if biased:      # the filter trades a little energy for stability: not in the unbiased mode
+            boiling_filter(temporal, gb.width, gb.height, settings.boiling_filter)
 
         gb.images()     # the whole-image arrays, made before the workers read them
         # With 1/Z weights a carried spatial reservoir's weight is w_sum M / Z:
