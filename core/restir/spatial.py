@@ -76,7 +76,8 @@ def spatial_resample(ctx, gb, temporal, prev_spatial, prev_owner_p, seeds, k, ra
     # shifted from); one is chosen per pixel at the end (reservoirs.choose).
     candidates = []
     m_own = np.where(valid, own.M, 0.0).astype(np.float32)
-    own_w = target_at(own, p, ng, nrm) * own.W * own.M
+    # p_hat W M of the own reservoir is its w_sum (finalised at this very point).
+    own_w = np.where(own.W > 0, own.w_sum, 0.0).astype(np.float32)
     candidates.append((temporal, pix, own_w, m_own, p, ng, nrm, None))
 
     if prev_spatial is not None:
