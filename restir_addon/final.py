@@ -105,8 +105,13 @@ def _render_restir(engine, ctx, scene, view_layer, width, height, export_s):
     settings = restir_settings(scene)
     stream = state.stream_for(scene.name, view_layer)
     frame = scene.frame_current
+    camera = scene.camera.name if scene.camera is not None else None
+    # Reuse continues only into the next frame of an animation seen by the same
+    # camera: a jump in time or a cut to another camera (timeline markers)
+    # starts over, with the warm-up of a first frame.
     follows = (engine.is_animation and stream.last_frame is not None
-               and frame == stream.last_frame + 1 and stream.restir.history is not None)
+               and frame == stream.last_frame + 1 and stream.restir.history is not None
+               and camera == stream.last_camera)
     if not follows:
         stream.restir.reset()
     warmup = 1 if follows else scene.restir_gi.warmup_frames
@@ -121,7 +126,7 @@ def _render_restir(engine, ctx, scene, view_layer, width, height, export_s):
 
     out = render_restir(ctx, stream.restir, settings, frame, warmup, on_frame=on_frame,
                         should_stop=engine.test_break)
-    stream.last_frame = frame
+    stream.last_frame, stream.last_camera = frame, camera
     if out is None:
         engine.report({"INFO"}, "Render cancelled before the first frame finished")
         stream.restir.reset()

@@ -3,8 +3,8 @@
 Blender makes a new RenderEngine for every animation frame unless persistent
 data is on, so the reservoirs of each (scene, view layer) stream live here,
 outside the engine, and are dropped when a file is loaded or the add-on is
-unregistered. Each stream remembers the last frame it rendered so a jump in
-time (not the next frame) starts over.
+unregistered. Each stream remembers the last frame it rendered and its camera,
+so a jump in time (not the next frame) or a camera cut starts over.
 """
 
 import bpy
@@ -18,6 +18,7 @@ class Stream:
     def __init__(self):
         self.restir = ReSTIRGI()
         self.last_frame = None
+        self.last_camera = None     # name of the camera object of that frame
 
 
 def stream_for(scene_name, layer_name):

@@ -437,3 +437,33 @@ def test_animation_writes_one_file_per_frame(addon, reports, tmp_path, mode):
     # 4 m across 32 px: the emitter moves 1.2 m = 9.6 px per frame, left to right.
     np.testing.assert_allclose(np.diff(centres), [9.6, 9.6], atol=1.0)
     assert reports.of("ERROR") == []
+
+
+def test_camera_cut_restarts_reuse(addon, reports, tmp_path):
+    """A marker switching to another camera resets the reservoirs (and warms
+    up again); the frames after the cut continue from it."""
+    import bpy
+    scene = fresh(16, 16, samples=1, mode="RESTIR_BIASED")
+    scene.restir_gi.warmup_frames = 3
+    world((0.5, 0.5, 0.5))
+    add_mesh("Floor", *rect(-2, 2, -2, 2))
+    cam_a = camera(location=(0, 0, 5), type="ORTHO", ortho_scale=4.0)
+    cam_b = camera(location=(0.5, 0, 5), type="ORTHO", ortho_scale=4.0)
+    scene.camera = cam_a
+    scene.timeline_markers.new("A", frame=1).camera = cam_a
+    scene.timeline_markers.new("B", frame=3).camera = cam_b
+    scene.frame_start, scene.frame_end = 1, 4
+    scene.render.image_settings.file_format = "OPEN_EXR"
+    scene.render.filepath = str(tmp_path / "frame_####")
+    stream = addon.restir_addon.state.stream_for(scene.name, bpy.context.view_layer.name)
+    stream.restir.reset()
+    bpy.ops.render.render(animation=True)
+    # Frames 1-2 (camera A): 3 warm-up + 1; the cut at 3 resets: 3 + 1 since.
+    assert stream.last_frame == 4 and stream.last_camera == cam_b.name
+    assert stream.restir.frames == 3 + 1
+    assert reports.of("ERROR") == []
+
+    bpy.context.scene.timeline_markers.clear()          # one camera throughout: no reset
+    stream.restir.reset()
+    bpy.ops.render.render(animation=True)
+    assert stream.restir.frames == 3 + 3
