@@ -90,6 +90,10 @@ class Accel:
             self._pool = None
         self._scene = None
 
+    def poll(self):
+        """A point where long passes without ray queries may be interrupted
+        (core/dynamic_accel.py); this structure is never interrupted."""
+
     def _map(self, fn, n):
         """Run fn(start, stop) over chunks of [0, n), in parallel when it pays."""
         if self._pool is None or n < _SPLIT_MIN or in_worker():

@@ -201,12 +201,14 @@ class DynamicAccel:
 
     # --- queries ---------------------------------------------------------------
 
-    def _check(self):
+    def poll(self):
+        """Raise TraceInterrupted if ``interrupt`` says so: every query does,
+        and long passes without queries call it between their steps."""
         if self.interrupt is not None and self.interrupt():
             raise TraceInterrupted()
 
     def intersect_closest(self, origins, directions, tmax=None):
-        self._check()
+        self.poll()
         t0 = time.perf_counter()
         o = np.asarray(origins, np.float32).reshape(-1, 3)
         d = np.asarray(directions, np.float32).reshape(-1, 3)
@@ -236,7 +238,7 @@ class DynamicAccel:
         return RayHits(t, prim, u, v)
 
     def occluded(self, origins, directions, tmax):
-        self._check()
+        self.poll()
         t0 = time.perf_counter()
         o = np.asarray(origins, np.float32).reshape(-1, 3)
         d = np.asarray(directions, np.float32).reshape(-1, 3)

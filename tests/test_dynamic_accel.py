@@ -184,6 +184,12 @@ def test08_interrupt(rng):
     dyn.interrupt = lambda: True
     with pytest.raises(TraceInterrupted):
         dyn.intersect_closest(*rays(rng, 10))
+    with pytest.raises(TraceInterrupted):     # passes without queries poll between steps
+        dyn.poll()
     dyn.interrupt = None
+    dyn.poll()
+    plain = Accel(v, t)
+    plain.poll()                              # the plain structure is never interrupted
+    plain.close()
     dyn.close()
     assert (dyn.intersect_closest(*rays(rng, 10)).prim == -1).all()

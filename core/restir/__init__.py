@@ -164,6 +164,7 @@ class ReSTIRGI:
             return prev, hold, direct, temporal
 
         prev_pix, hold, direct, temporal = concat_rows(ctx.workers.map(new_samples, n))
+        ctx.accel.poll()    # the resampling passes trace no rays until shading
         if biased:      # the filter trades a little energy for stability: not in the unbiased mode
             boiling_filter(temporal, gb.width, gb.height, settings.boiling_filter)
 

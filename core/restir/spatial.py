@@ -91,6 +91,7 @@ def spatial_resample(ctx, gb, temporal, prev_spatial, prev_owner_p, seeds, k, ra
     if lum_wm is None:
         lum_wm = reuse_weights(temporal)
     for i in range(k):
+        ctx.accel.poll()
         u = samplers.uniform2(seeds, D_SPATIAL + 2 + 3 * i)
         r = radius * np.sqrt(u[:, 0])
         phi = 2.0 * np.pi * u[:, 1]
