@@ -196,6 +196,11 @@ def pdf(params, wo, wi):
     return _lobes(params, wo, wi, False, True)[1]
 
 
+def evaluate_pdf(params, wo, wi):
+    """(evaluate, pdf) in one pass over the shared specular terms."""
+    return _lobes(params, wo, wi, True, True)
+
+
 def sample(params, wo, u_lobe, u):
     """Draw wi; returns (wi, f, pdf). pdf is 0 where no valid direction was found."""
     wi = square_to_cosine_hemisphere(u)

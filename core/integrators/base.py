@@ -82,12 +82,14 @@ def direct_light(ctx, surf, frame, seeds, bounce, mis=True, strategy_pdf=None, u
         u_sel, u = u_light
     ls = ctx.lights.sample(surf.p, u_sel, u)
     wi_local = frame.local(surf, ls.wi)
-    f = bsdf.evaluate(frame.params, frame.wo_local, wi_local)
+    if mis and strategy_pdf is None:
+        f, pdf_b = bsdf.evaluate_pdf(frame.params, frame.wo_local, wi_local)
+    else:
+        f = bsdf.evaluate(frame.params, frame.wo_local, wi_local)
+        pdf_b = strategy_pdf(wi_local) if mis else None
     cos = np.maximum(wi_local[:, 2], 0.0)
     above = dot(ls.wi, surf.ng) > 0       # reflection only: the light must be on wo's side
     if mis:
-        pdf_b = (bsdf.pdf(frame.params, frame.wo_local, wi_local) if strategy_pdf is None
-                 else strategy_pdf(wi_local))
         w = np.where(ls.delta, 1.0, power_heuristic(ls.pdf, pdf_b))
     else:
         w = np.ones(n, np.float32)
