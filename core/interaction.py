@@ -1,4 +1,4 @@
-"""Surface hits of a ray batch: position, normals, uv, material, for every hit."""
+"""Surface hits of a ray batch: position, normals, material, for every hit."""
 
 from dataclasses import dataclass
 
@@ -13,12 +13,13 @@ class SurfaceHits:
     """Struct-of-arrays surface interaction for a batch of hits (all valid).
 
     Normals are flipped to face the incoming direction (``wo`` side), as Cycles
-    does for reflection-only materials: every surface is two-sided.
+    does for reflection-only materials: every surface is two-sided. No texture
+    coordinates: material inputs use their socket values (scene.uvs keeps the
+    exported UVs for when textures are read).
     """
     p: np.ndarray           # (N, 3) position
     ng: np.ndarray          # (N, 3) unit geometric normal, facing wo
     ns: np.ndarray          # (N, 3) unit shading normal, same hemisphere as ng
-    uv: np.ndarray          # (N, 2)
     wo: np.ndarray          # (N, 3) unit direction back along the incoming ray
     prim: np.ndarray        # (N,) int32 triangle index
     material: np.ndarray    # (N,) int32 material id
@@ -53,11 +54,9 @@ def surface_hits(scene, origins, directions, hits, mask=None):
     bad_ns = ~(dot(ns, ns) > 0.5)
     if bad_ns.any():
         ns[bad_ns] = ng[bad_ns]
-    uvs = gather(scene.uvs, prim)
-    uv = (scale(uvs[:, 0], b0) + scale(uvs[:, 1], b1) + scale(uvs[:, 2], b2)).astype(np.float32)
     wo = -gather(directions, idx).astype(np.float32)
     front = dot(ng, wo) >= 0
     ng = scale(ng, np.where(front, np.float32(1), np.float32(-1)))
     ns = scale(ns, np.where(dot(ns, ng) >= 0, np.float32(1), np.float32(-1)))
-    return SurfaceHits(p=p, ng=ng, ns=ns, uv=uv, wo=wo, prim=prim.astype(np.int32),
+    return SurfaceHits(p=p, ng=ng, ns=ns, wo=wo, prim=prim.astype(np.int32),
                        material=np.take(scene.material_ids, prim), front=front), idx

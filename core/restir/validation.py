@@ -51,7 +51,7 @@ def validate(ctx, res, max_bounces, threshold=CHANGE_THRESHOLD):
 
     def retrace(a, b):      # the paths of distinct samples a..b, on the context's workers
         k = slice(a, b)
-        surf = SurfaceHits(p=x2[k], ng=ng2[k], ns=n2[k], uv=np.zeros((b - a, 2), np.float32),
+        surf = SurfaceHits(p=x2[k], ng=ng2[k], ns=n2[k],
                            wo=wo2[k], prim=prim2[k], material=mat2[k], front=np.ones(b - a, bool))
         return radiance_from_surface(ctx, surf, seed[k], 1, max_bounces)
 
