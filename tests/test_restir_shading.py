@@ -59,3 +59,16 @@ def test03_moved_geometry_is_traced_again():
     assert (np.abs(state) <= 1).all()
     has = restir.history.spatial.has_sample[idx]
     assert np.array_equal((state > 0)[has], traced[has])
+
+
+def test04_biased_mode_does_not_carry_hidden_samples():
+    """A sample found hidden at final shading is dropped from the carried
+    spatial reservoir in the biased mode (it would keep its pixel black for
+    frames); the unbiased mode keeps it (dropping it would bias the estimate)."""
+    from core.restir import BIASED, UNBIASED
+    for mode, carried in ((BIASED, False), (UNBIASED, True)):
+        restir, idx, _ = render(inside_box(24, 24), 6, settings=ReSTIRSettings(mode=mode, max_bounces=1, seed=5))
+        h = restir.history
+        hidden = h.visibility[idx] < 0
+        assert hidden.sum() >= 3                        # hidden samples happen here
+        assert (hidden & h.spatial.has_sample[idx]).any() == carried
