@@ -7,7 +7,11 @@ compete. So each pixel gets one shadow ray, and ``light_samples`` where last
 frame's direct light was noisy: its 3x3 neighbourhood disagreed by more than
 NOISE_RELATIVE. A flag is kept for HOLD_FRAMES frames, so a penumbra that
 looked smooth with many rays does not fall back to one and flicker. Pixels
-without history (first frame, disocclusions) get ``light_samples``.
+that lost their history (disocclusions) get ``light_samples``; the first frame
+of a stream, with no history at all, gets one ray everywhere and its own noise
+flags the penumbrae for the next frame (a first frame with 16 rays everywhere
+took twice as long, and is a warm-up frame of a render or a viewport frame
+that is averaged with the next ones).
 
 The count of a pixel depends only on earlier frames, never on this frame's
 samples, so each frame's direct light stays an unbiased estimate.
@@ -53,10 +57,10 @@ def update_noise_hold(direct, valid, width, height, prev_hold):
 def light_sample_counts(index, prev_pix, hold, light_samples):
     """Shadow rays per visible point (gb.index order): ``light_samples`` where
     the reprojected hold (reprojected_hold) flags noise or history is missing
-    (prev_pix < 0), else one."""
+    (prev_pix < 0), else one; one everywhere on a first frame (hold None)."""
     light_samples = max(1, int(light_samples))
     if hold is None or light_samples == 1:
-        return np.full(len(index), light_samples, np.int64)
+        return np.ones(len(index), np.int64)
     flagged = (prev_pix[index] < 0) | (hold[index] > 0)
     return np.where(flagged, light_samples, 1).astype(np.int64)
 
