@@ -120,14 +120,14 @@ class ReSTIRGI:
         if history is not None:
             carry_with_objects(scene, history)     # samples and owners ride with moved objects
 
-        # Stored samples are re-traced only if the lighting changed since the
-        # last validation: in an unchanged scene a re-traced path (same seed)
-        # gives exactly its stored radiance.
-        geometry_key = scene.geometry_key()
         # Last frame's traced visibility is reused only if no triangle moved.
+        geometry_key = scene.geometry_key()
         static = history is not None and history.visibility is not None \
             and geometry_key == self._geometry_key
         self._geometry_key = geometry_key
+        # Stored samples are re-traced only if the lighting changed since the
+        # last validation: in an unchanged scene a re-traced path (same seed)
+        # gives exactly its stored radiance.
         if settings.validation_interval > 0:
             key = scene.lighting_key(geometry_key)
             self._stale |= self._lighting_key is not None and key != self._lighting_key
