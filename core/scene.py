@@ -155,6 +155,9 @@ class Scene:
     object_keys: list = field(default_factory=list)
     object_matrices: np.ndarray = field(default_factory=lambda: np.zeros((0, 4, 4), np.float32))
     face_normals: np.ndarray = None   # (T, 3) unit geometric normals (make_scene fills them)
+    # (geometry, lighting) change counters, from a builder that knows what it
+    # changed (the viewport): the keys below are then these instead of digests.
+    versions: tuple = None
 
     @property
     def triangle_count(self):
@@ -173,6 +176,8 @@ class Scene:
     def geometry_key(self):
         """A digest of the triangles and where they are: equal keys mean every
         ray hits what it hit before (visibility is unchanged)."""
+        if self.versions is not None:
+            return b"geometry version %d" % self.versions[0]
         return _digest([self.vertices, self.triangles])
 
     def lighting_key(self, geometry_key=None):
@@ -180,6 +185,8 @@ class Scene:
         (geometry, materials, lights, world), but not the camera or the image:
         equal keys mean a path traced again with the same seed gives the same
         radiance. geometry_key: this scene's, if the caller has it."""
+        if self.versions is not None:
+            return b"lighting version %d.%d" % tuple(self.versions)
         arrays = [self.normals, self.material_ids, self.world_color]
         arrays += [getattr(self.materials, f.name) for f in fields(Materials) if f.name != "names"]
         arrays += [getattr(self.lights, f.name) for f in fields(Lights) if f.name != "names"]

@@ -206,6 +206,7 @@ class ViewportSession:
         self._accum_n = 0
         self._frames_since_edit = 0     # frames since objects last changed (for settling)
         self._applied_generation = 0
+        self._geometry_version = self._lighting_version = 0
         # --- published ---
         self.frame = None               # (h, w, 4) float32 RGBA, row 0 at the bottom
         self.frame_serial = 0
@@ -515,6 +516,11 @@ class ViewportSession:
         if p.settings:
             self._restir.reset()
             self._divisor = None
+        # Change counters instead of hashing the whole scene every frame
+        # (Scene.versions): geometry, and everything that lights a surface.
+        self._geometry_version += geometry
+        self._lighting_version += geometry or any(
+            x is not None for x in (p.materials, p.lights, p.world))
         self._applied_generation = p.generation
         self._build_context(geometry or p.materials is not None or p.lights is not None)
         self._accum, self._accum_n = None, 0
@@ -620,7 +626,8 @@ class ViewportSession:
                       lights=self._scene_lights, camera=self._camera, world_color=self._world_color,
                       width=w, height=h, filter_width=self._filter_width,
                       object_keys=list(a["keys"]), object_matrices=a["matrices"].copy(),
-                      face_normals=a["face_normals"])
+                      face_normals=a["face_normals"],
+                      versions=(self._geometry_version, self._lighting_version))
         if self._ctx is None or lights_changed:
             lights = LightSet(scene)
             eps = RAY_EPS_RELATIVE * scene.extent()

@@ -129,6 +129,12 @@ def work_delta(before, after):
     return {k: b[k] - a[k] for k in a if b[k] != a[k]}
 
 
+def keys(session):
+    """The scene's (geometry, lighting) keys: what ReSTIR GI compares between
+    frames to reuse visibility and to validate samples."""
+    return session.scene.geometry_key(), session.scene.lighting_key()
+
+
 def step(session, updates=None, frames=1):
     """sync the updates, render frames; return the counters that changed."""
     before = dataclasses.replace(session.work)
@@ -164,6 +170,7 @@ def test02_transform_edit_moves_triangles_only(vp, recorder):
     session = new_session(vp)
     step(session)
     mover = bpy.data.objects["Mover"]
+    geometry, lighting = keys(session)
     updates = recorder.edit(lambda: setattr(mover, "location", (1.0, -0.4, 0.3)))
     # First move: the rest of the scene is built once without the mover.
     assert step(session, updates) == {"object_walks": 1, "transform_updates": 1, "triangle_updates": 1,
@@ -173,6 +180,8 @@ def test02_transform_edit_moves_triangles_only(vp, recorder):
         updates = recorder.edit(lambda: setattr(mover, "location", (x, -0.4, 0.3)))
         assert step(session, updates) == {"object_walks": 1, "transform_updates": 1, "triangle_updates": 1,
                                           "accel_dynamic_builds": 1, "frames": 1}
+    g, li = keys(session)
+    assert g != geometry and li != lighting
     # The triangles moved with the object.
     scene = session.scene
     oid = scene.object_keys.index(("Mover", ()))
@@ -222,6 +231,7 @@ def test04_shading_edits_leave_the_triangles_alone(vp, recorder, kind):
     session = new_session(vp)
     step(session)
     before = session.frame[..., :3].mean()
+    geometry, lighting = keys(session)
     if kind == "material":
         node = bpy.data.materials["Grey"].node_tree.nodes["Principled BSDF"]
         change = lambda: setattr(node.inputs["Base Color"], "default_value", (0.9, 0.9, 0.9, 1))  # noqa: E731
@@ -238,6 +248,7 @@ def test04_shading_edits_leave_the_triangles_alone(vp, recorder, kind):
         expected = {"world_updates": 1, "frames": 1}
     assert step(session, recorder.edit(change)) == expected
     assert session.frame[..., :3].mean() > before * 1.05     # each edit brightens the image
+    assert keys(session)[0] == geometry and keys(session)[1] != lighting
     session.close()
 
 
@@ -253,11 +264,13 @@ def test05_camera_move_keeps_reservoirs(vp):
     moved.to_world[:3, :3] = rot @ camera.to_world[:3, :3]
     moved.to_world[:3, 3] += (0.05, 0.0, 0.0)
     before = dataclasses.replace(session.work)
+    before_keys = keys(session)
     session.set_view(moved)
     session.set_view(moved)                     # the same view again is no change
     assert session.render_step()
     assert work_delta(before, session.work) == {"camera_updates": 1, "frames": 1}
     assert session.restir.frames == 5           # not reset
+    assert keys(session) == before_keys
     assert session.last_history_found > 0.7
     session.close()
 
