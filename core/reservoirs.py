@@ -34,8 +34,13 @@ class SampleView:
 
     def view(self, index):
         """The rows at an index array (copies)."""
-        return SampleView(*(gather(a, index) for a in (self.x2, self.ng2, self.lo)),
-                          *(np.take(a, index) for a in (self.prim2, self.W, self.M)))
+        return sample_view(self, index)
+
+
+def sample_view(src, index):
+    """SampleView of the rows of ``src`` (Reservoirs or SampleView) at an index array."""
+    return SampleView(gather(src.x2, index), gather(src.ng2, index), gather(src.lo, index),
+                      np.take(src.prim2, index), np.take(src.W, index), np.take(src.M, index))
 
 
 @dataclass
@@ -77,8 +82,7 @@ class Reservoirs:
 
     def view(self, index):
         """SampleView of rows gathered by an index array."""
-        return SampleView(gather(self.x2, index), gather(self.ng2, index), gather(self.lo, index),
-                          np.take(self.prim2, index), np.take(self.W, index), np.take(self.M, index))
+        return sample_view(self, index)
 
     def rows(self, start, stop):
         """Rows [start, stop) as views (no copy)."""
