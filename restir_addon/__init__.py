@@ -2,8 +2,8 @@
 
 if "bpy" in locals():  # add-on reload: re-import submodules in order
     import importlib
-    for _name in ("properties", "state", "final", "viewport_sync", "viewport", "viewport_draw",
-                  "engine", "ui"):
+    for _name in ("properties", "state", "final", "viewport_sync", "viewport_arrays", "viewport",
+                  "viewport_draw", "engine", "ui"):
         if _name in locals():
             importlib.reload(locals()[_name])
 

@@ -24,7 +24,8 @@ applied by ``render_step`` between two frames, so the render thread never
 sees a scene half-updated.
 
 Here: the session, its settings and its bookkeeping (Work, Update, _Pending).
-The reading of meshes and cameras is in viewport_sync.py; the engine's
+The reading of meshes and cameras is in viewport_sync.py, the combined
+world-space arrays of all objects in viewport_arrays.py; the engine's
 callbacks (``view_update``, ``view_draw``, ``free``) and the GPU drawing are
 in viewport_draw.py, re-exported here with the camera helpers.
 """
@@ -51,7 +52,8 @@ from .export.camera import export_camera, render_size
 from .export.lights import is_supported, light_row
 from .export.mesh import GEOMETRY_TYPES
 from .export.world import export_world
-from .viewport_sync import _Instance, _mesh_key, _placed, _read_object_mesh, _same_camera
+from .viewport_arrays import CombinedArrays
+from .viewport_sync import _Instance, _mesh_key, _read_object_mesh, _same_camera
 # Re-exported: engine.py, the tests and the benchmarks find them here.
 from .viewport_draw import free, session_settings, view_draw, view_update  # noqa: F401
 from .viewport_sync import camera_from_region, camera_from_view  # noqa: F401
@@ -191,9 +193,7 @@ class ViewportSession:
         self._ctx = None
         self._restir = ReSTIRGI()
         self._frame_index = 0
-        self._place_cache = {}          # key -> (positions, normals, face normals) in world space
-        self._layout = {}               # key -> (v0, v1, t0, t1) rows in the combined arrays
-        self._arrays = None
+        self._combined = CombinedArrays()   # every object's triangles, in world space
         self._scene_materials = Materials.from_list([{}])
         self._scene_lights = Lights.empty()
         self._world_color = np.zeros(3, np.float32)
@@ -528,26 +528,8 @@ class ViewportSession:
     def _apply_objects(self, p):
         inst = p.instances
         changed = p.moved | p.remeshed
-        for key in changed | (self._place_cache.keys() - inst.keys()):
-            self._place_cache.pop(key, None)
-        in_place = self._arrays is not None and not p.layout and all(
-            key in self._layout and self._fits(key, inst[key]) for key in changed | p.reslotted)
-        if in_place:
-            a = self._arrays
-            for key in changed | p.reslotted:
-                v0, v1, t0, t1 = self._layout[key]
-                it = inst[key]
-                if key in changed:
-                    pos, nrm, fn = self._place(key, it)
-                    a["vertices"][v0:v1], a["normals"][t0:t1], a["face_normals"][t0:t1] = pos, nrm, fn
-                    a["triangles"][t0:t1] = it.mesh.triangles + v0
-                    a["uvs"][t0:t1] = it.mesh.uvs
-                    a["matrices"][a["keys"].index(key)] = it.matrix
-                a["material_ids"][t0:t1] = it.slot_ids[np.clip(it.mesh.slots, 0, len(it.slot_ids) - 1)]
-        else:
-            self._assemble(inst)
+        a = self._combined.update(inst, changed, p.reslotted, p.layout)
         self.work.triangle_updates += 1
-        a = self._arrays
         if p.full and self._accel is not None:
             self._accel.close()
             self._accel = None
@@ -567,52 +549,8 @@ class ViewportSession:
         self.work.accel_static_builds += self._accel.static_builds - static_before
         self.work.accel_dynamic_builds += self._accel.dynamic_builds - dynamic_before
 
-    def _fits(self, key, inst):
-        v0, v1, t0, t1 = self._layout[key]
-        return v1 - v0 == len(inst.mesh.positions) and t1 - t0 == len(inst.mesh.triangles)
-
-    def _place(self, key, inst):
-        if key not in self._place_cache:
-            self._place_cache[key] = _placed(inst)
-        return self._place_cache[key]
-
-    def _assemble(self, instances):
-        """Combined arrays of every instance (placed ones reused from the cache)."""
-        parts = {k: [] for k in ("vertices", "triangles", "normals", "uvs", "material_ids",
-                                 "object_ids", "face_normals")}
-        layout, keys, matrices = {}, [], []
-        v_off = t_off = 0
-        for oid, (key, it) in enumerate(instances.items()):
-            pos, nrm, fn = self._place(key, it)
-            nv, nt = len(pos), len(it.mesh.triangles)
-            parts["vertices"].append(pos)
-            parts["triangles"].append(it.mesh.triangles + v_off)
-            parts["normals"].append(nrm)
-            parts["uvs"].append(it.mesh.uvs)
-            parts["material_ids"].append(it.slot_ids[np.clip(it.mesh.slots, 0, len(it.slot_ids) - 1)])
-            parts["object_ids"].append(np.full(nt, oid, np.int32))
-            parts["face_normals"].append(fn)
-            layout[key] = (v_off, v_off + nv, t_off, t_off + nt)
-            keys.append(key)
-            matrices.append(it.matrix)
-            v_off += nv
-            t_off += nt
-        shapes = {"vertices": (0, 3), "triangles": (0, 3), "normals": (0, 3, 3), "uvs": (0, 3, 2),
-                  "material_ids": (0,), "object_ids": (0,), "face_normals": (0, 3)}
-        dtypes = {"triangles": np.int32, "material_ids": np.int32, "object_ids": np.int32}
-        a = {}
-        for name, items in parts.items():
-            dtype = dtypes.get(name, np.float32)
-            a[name] = (np.concatenate(items).astype(dtype) if items
-                       else np.zeros(shapes[name], dtype))
-        a["keys"] = keys
-        a["matrices"] = (np.stack(matrices).astype(np.float32) if matrices
-                         else np.zeros((0, 4, 4), np.float32))
-        self._arrays = a
-        self._layout = layout
-
     def _build_context(self, lights_changed):
-        a = self._arrays
+        a = self._combined.arrays
         if a is None or self._camera is None or self._size is None:
             self._ctx = None
             return
@@ -802,9 +740,7 @@ class ViewportSession:
         if self._workers is not None:
             self._workers.close()
         self._accel = self._ctx = self._scene = self._workers = None
-        self._arrays = None
-        self._place_cache = {}
-        self._layout = {}
+        self._combined.free()
         self._restir.reset()
         self._accum, self._accum_n = None, 0
         self.frame = None

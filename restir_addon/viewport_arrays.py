@@ -1,0 +1,92 @@
+"""The viewport's combined scene: every instance's triangles in world space,
+concatenated into the arrays a core Scene is made of, and updated in place
+when an edit keeps each changed object's vertex and triangle counts (a move,
+a material slot change, a mesh edit of the same size)."""
+
+import numpy as np
+
+from .viewport_sync import _placed
+
+NAMES = ("vertices", "triangles", "normals", "uvs", "material_ids", "object_ids", "face_normals")
+_EMPTY_SHAPES = {"vertices": (0, 3), "triangles": (0, 3), "normals": (0, 3, 3), "uvs": (0, 3, 2),
+                 "material_ids": (0,), "object_ids": (0,), "face_normals": (0, 3)}
+_INT = {"triangles", "material_ids", "object_ids"}
+
+
+def _material_ids(inst):
+    return inst.slot_ids[np.clip(inst.mesh.slots, 0, len(inst.slot_ids) - 1)]
+
+
+class CombinedArrays:
+    """``arrays``: name -> array for the names in NAMES, plus ``keys`` (the
+    instance key of each object id) and ``matrices`` (their world matrices)."""
+
+    def __init__(self):
+        self.arrays = None
+        self._layout = {}       # key -> (v0, v1, t0, t1) rows in the combined arrays
+        self._placed = {}       # key -> (positions, normals, face normals) in world space
+
+    def update(self, instances, changed, reslotted, relayout):
+        """Bring the arrays up to date with ``instances`` (key -> instance):
+        ``changed`` keys moved or were re-meshed, ``reslotted`` changed
+        material slots; ``relayout`` (objects added or removed) rebuilds."""
+        for key in changed | (self._placed.keys() - instances.keys()):
+            self._placed.pop(key, None)
+        in_place = self.arrays is not None and not relayout and all(
+            key in self._layout and self._fits(key, instances[key]) for key in changed | reslotted)
+        if not in_place:
+            self._assemble(instances)
+            return self.arrays
+        a = self.arrays
+        for key in changed | reslotted:
+            v0, v1, t0, t1 = self._layout[key]
+            it = instances[key]
+            if key in changed:
+                pos, nrm, fn = self._place(key, it)
+                a["vertices"][v0:v1], a["normals"][t0:t1], a["face_normals"][t0:t1] = pos, nrm, fn
+                a["triangles"][t0:t1] = it.mesh.triangles + v0
+                a["uvs"][t0:t1] = it.mesh.uvs
+                a["matrices"][a["keys"].index(key)] = it.matrix
+            a["material_ids"][t0:t1] = _material_ids(it)
+        return a
+
+    def free(self):
+        self.arrays = None
+        self._layout = {}
+        self._placed = {}
+
+    def _fits(self, key, inst):
+        v0, v1, t0, t1 = self._layout[key]
+        return v1 - v0 == len(inst.mesh.positions) and t1 - t0 == len(inst.mesh.triangles)
+
+    def _place(self, key, inst):
+        if key not in self._placed:
+            self._placed[key] = _placed(inst)
+        return self._placed[key]
+
+    def _assemble(self, instances):
+        """Combined arrays of every instance (placed ones reused from the cache)."""
+        parts = {name: [] for name in NAMES}
+        layout, keys, matrices = {}, [], []
+        v_off = t_off = 0
+        for oid, (key, it) in enumerate(instances.items()):
+            pos, nrm, fn = self._place(key, it)
+            nv, nt = len(pos), len(it.mesh.triangles)
+            for name, value in (("vertices", pos), ("triangles", it.mesh.triangles + v_off),
+                                ("normals", nrm), ("uvs", it.mesh.uvs), ("material_ids", _material_ids(it)),
+                                ("object_ids", np.full(nt, oid, np.int32)), ("face_normals", fn)):
+                parts[name].append(value)
+            layout[key] = (v_off, v_off + nv, t_off, t_off + nt)
+            keys.append(key)
+            matrices.append(it.matrix)
+            v_off += nv
+            t_off += nt
+        a = {}
+        for name, items in parts.items():
+            dtype = np.int32 if name in _INT else np.float32
+            a[name] = np.concatenate(items).astype(dtype) if items else np.zeros(_EMPTY_SHAPES[name], dtype)
+        a["keys"] = keys
+        a["matrices"] = (np.stack(matrices).astype(np.float32) if matrices
+                         else np.zeros((0, 4, 4), np.float32))
+        self.arrays = a
+        self._layout = layout
