@@ -1,5 +1,6 @@
 """Rendering one frame: settings in, a Film out, with progress and cancel hooks."""
 
+import dataclasses
 import time
 from dataclasses import dataclass
 
@@ -9,6 +10,7 @@ from .camera import PixelFilter
 from .film import Film
 from .integrators.path import camera_pass
 from .parallel import concat_rows
+from .restir.accumulation import STILL
 
 
 @dataclass
@@ -66,15 +68,33 @@ def render_frame(ctx, settings, frame=0, on_sample=None, should_stop=None):
     return film
 
 
-def render_restir(ctx, restir, settings, frame, warmup=1, on_frame=None, should_stop=None):
-    """Run ``warmup`` ReSTIR GI frames of the (unchanging) scene and return the
-    last FrameResult (None if stopped before the first). Each warm-up frame gets
-    its own random numbers; on_frame(i, result) follows every frame."""
+def settle_frames(frames):
+    """Frames of a fresh start left out of a still's mean: the first frames'
+    reservoirs hold few samples, and their noise would dominate the mean."""
+    return min(frames // 4, 8)
+
+
+def render_restir(ctx, restir, settings, frame, frames=1, fresh=False, on_frame=None, should_stop=None):
+    """Run ``frames`` ReSTIR GI frames of the (unchanging) scene and return the
+    last FrameResult (None if stopped before the first). Each gets its own
+    random numbers; on_frame(i, result) follows every frame.
+
+    fresh: the reservoirs start empty (a still, or the first frame of an
+    animation). The image is then the mean of every frame after the first
+    settle_frames(frames), so a still gets cleaner as ``frames`` grows (and in
+    the unbiased mode converges to the path-traced image). Otherwise each
+    pixel's running mean keeps at most ``settings.accumulate`` frames."""
+    run = settings
+    if fresh and settings.accumulate > 1:
+        run = dataclasses.replace(settings, accumulate=STILL)
+    settle = settle_frames(frames) if fresh else 0
     result = None
-    for i in range(max(1, warmup)):
+    for i in range(max(1, frames)):
         if should_stop is not None and should_stop():
             break
-        result = restir.render_frame(ctx, settings, frame * 65536 + i)
+        if i == settle and i > 0:
+            restir.restart_accumulation()
+        result = restir.render_frame(ctx, run, frame * 65536 + i)
         if on_frame is not None:
             on_frame(i, result)
     return result

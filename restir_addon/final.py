@@ -1,9 +1,10 @@
 """Final and animation renders: export, render, write the result's passes.
 
 Path tracing accumulates ``samples`` passes per frame. The ReSTIR GI modes run
-one frame of resampling per animation frame, carrying reservoirs from the
-previous frame (state.py); a still render, or a frame that does not follow the
-last one rendered, first runs ``warmup_frames`` frames on the still scene.
+``samples`` frames of resampling per animation frame, carrying reservoirs and
+each pixel's running mean from the previous frame (state.py); a still render,
+or a frame that does not follow the last one rendered, runs ``warmup_frames``
+frames on the still scene and writes their mean (core/render.py).
 
 Every failure becomes a report and a valid (black or partial) result; the
 render never dies with a traceback.
@@ -37,7 +38,8 @@ def path_settings(scene):
 def restir_settings(scene):
     s = scene.restir_gi
     return ReSTIRSettings(
-        mode=s.mode, samples=s.samples, max_bounces=s.max_bounces, seed=s.seed,
+        mode=s.mode, samples=1, max_bounces=s.max_bounces, seed=s.seed,
+        accumulate=s.accumulate_frames,
         initial_sampling=s.initial_sampling, temporal_M_cap=float(s.temporal_m_cap),
         spatial_M_cap=float(s.spatial_m_cap), max_age=s.max_age,
         spatial_neighbors=s.spatial_neighbors, spatial_radius=float(s.spatial_radius),
@@ -114,25 +116,25 @@ def _render_restir(engine, ctx, scene, view_layer, width, height, export_s):
                and camera == stream.last_camera)
     if not follows:
         stream.restir.reset()
-    warmup = 1 if follows else scene.restir_gi.warmup_frames
+    frames = scene.restir_gi.samples if follows else scene.restir_gi.warmup_frames
     start = time.perf_counter()
     done = [0]
 
     def on_frame(i, _result):
         done[0] = i + 1
-        engine.update_progress((i + 1) / warmup)
-        engine.update_stats("", f"Frame {frame} | ReSTIR frame {i + 1}/{warmup} "
+        engine.update_progress((i + 1) / frames)
+        engine.update_stats("", f"Frame {frame} | ReSTIR frame {i + 1}/{frames} "
                                 f"| {time.perf_counter() - start:.1f} s (export {export_s:.2f} s)")
 
-    out = render_restir(ctx, stream.restir, settings, frame, warmup, on_frame=on_frame,
-                        should_stop=engine.test_break)
+    out = render_restir(ctx, stream.restir, settings, frame, frames, fresh=not follows,
+                        on_frame=on_frame, should_stop=engine.test_break)
     stream.last_frame, stream.last_camera = frame, camera
     if out is None:
         engine.report({"INFO"}, "Render cancelled before the first frame finished")
         stream.restir.reset()
         return None
-    if done[0] < warmup:
-        engine.report({"INFO"}, f"Render cancelled after {done[0]} of {warmup} warm-up frames")
+    if done[0] < frames:
+        engine.report({"INFO"}, f"Render cancelled after {done[0]} of {frames} frames of resampling")
     return frame_images(out, width, height)
 
 

@@ -29,14 +29,22 @@ class RestirGISceneSettings(bpy.types.PropertyGroup):
     )
     samples: IntProperty(
         name="Samples",
-        description="Path tracing: samples per pixel. ReSTIR GI: initial samples per pixel per frame",
+        description="Path tracing: samples per pixel. ReSTIR GI: frames of resampling per animation "
+                    "frame, averaged (more time per frame, a cleaner frame)",
         default=16, min=1, soft_max=1024, max=65536,
     )
     warmup_frames: IntProperty(
         name="Warm-up Frames",
-        description="ReSTIR GI: frames of resampling run on the still scene before a still render or "
-                    "the first frame of an animation is written",
+        description="ReSTIR GI: frames of resampling run on the still scene for a still render or "
+                    "the first frame of an animation; the image is their mean once the first quarter "
+                    "(at most 8) has filled the reservoirs",
         default=32, min=1, soft_max=128, max=4096,
+    )
+    accumulate_frames: IntProperty(
+        name="Accumulation", default=16, min=1, soft_max=64, max=4096,
+        description="ReSTIR GI: frames in each pixel's running mean, carried through reprojection "
+                    "(anti-aliasing and direct light settle over them; disocclusions and changed "
+                    "lighting start over; 1 = off)",
     )
     initial_sampling: EnumProperty(
         name="Initial Sampling", items=INITIAL_SAMPLING_ITEMS, default="COSINE",

@@ -36,9 +36,10 @@ class RESTIR_RENDER_PT_sampling(RestirButtonsPanel, bpy.types.Panel):
         settings = context.scene.restir_gi
         layout.prop(settings, "mode")
         col = layout.column(align=True)
-        col.prop(settings, "samples", text="Samples" if settings.mode == "PATH" else "Initial Samples")
+        col.prop(settings, "samples", text="Samples" if settings.mode == "PATH" else "Frames per Frame")
         if settings.mode != "PATH":
             col.prop(settings, "warmup_frames")
+            col.prop(settings, "accumulate_frames")
         col.prop(settings, "seed")
 
 

@@ -2,7 +2,8 @@
 
 Per frame: primary visibility (gbuffer.py) -> initial samples (initial.py) ->
 temporal resampling (temporal.py) -> spatial resampling (spatial.py) -> final
-shading (shading.py); every few frames, sample validation (validation.py).
+shading (shading.py) -> reprojected accumulation of the shaded frames
+(accumulation.py); every few frames, sample validation (validation.py).
 ``ReSTIRGI`` owns the state that lives between frames; everything else is
 plain functions of plain arrays.
 """
@@ -17,6 +18,7 @@ from .. import samplers
 from ..camera import PixelFilter
 from ..parallel import concat_rows
 from ..rows import gather
+from .accumulation import STILL, accumulate, previous_pixels, restart
 from .adaptive_direct import light_sample_counts, reprojected_hold, update_noise_hold
 from ..reservoirs import finalize, merge
 from .boiling import boiling_filter
@@ -25,10 +27,12 @@ from .initial import COSINE, initial_samples
 from .shading import carried_visibility, shade_indirect
 from .shift import target_at
 from .spatial import reuse_weights, spatial_resample
-from .temporal import FrameHistory, carry_with_objects, reproject, temporal_resample
+from .temporal import (FrameHistory, carry_with_objects, motion_to_previous, moved_objects, reproject,
+                       temporal_resample)
 from .validation import validate
 
 BIASED = "RESTIR_BIASED"
+MOVING_CAP = 4      # frames of accumulated history kept in a frame where objects moved
 UNBIASED = "RESTIR_UNBIASED"
 
 
@@ -50,17 +54,19 @@ class ReSTIRSettings:
     boiling_filter: float = 0.2     # strength (boiling.py), biased mode only; 0 turns it off
     light_samples: int = 16         # shadow rays for the direct light of visible points in
                                     # penumbrae (one elsewhere: adaptive_direct.py)
+    accumulate: int = 16            # frames in each pixel's running mean (accumulation.py);
+                                    # 1 turns it off, accumulation.STILL averages every frame
 
 
 @dataclass
 class FrameResult:
     """One frame, full-image rows (pixel index y * width + x)."""
-    color: np.ndarray       # (P, 3)
-    direct: np.ndarray      # (P, 3) emission seen directly + direct light
-    indirect: np.ndarray    # (P, 3)
-    depth: np.ndarray
-    normal: np.ndarray
-    albedo: np.ndarray
+    color: np.ndarray       # (P, 3) direct + indirect
+    direct: np.ndarray      # (P, 3) emission seen directly + direct light (accumulated)
+    indirect: np.ndarray    # (P, 3) (accumulated)
+    depth: np.ndarray       # (P,) this frame's
+    normal: np.ndarray      # (P, 3) accumulated
+    albedo: np.ndarray      # (P, 3) accumulated
     M: np.ndarray           # (P,) spatial reservoir M
     W: np.ndarray           # (P,) spatial reservoir W
     history_found: float    # fraction of visible pixels with accepted temporal history
@@ -81,6 +87,11 @@ class ReSTIRGI:
         self._geometry_key = None   # Scene.geometry_key of the last frame
         self._stale = False         # the lighting changed since the last validation
 
+    def restart_accumulation(self):
+        """The next frame starts every pixel's running mean over (accumulation.py)."""
+        if self.history is not None:
+            restart(self.history.accumulation)
+
     @property
     def nbytes(self):
         h = self.history
@@ -88,7 +99,7 @@ class ReSTIRGI:
             return 0
         return h.temporal.nbytes + h.spatial.nbytes + sum(
             a.nbytes for a in (h.p, h.n, h.ng, h.depth, h.valid, h.object_id, h.noise_hold,
-                                h.visibility) if a is not None)
+                                h.visibility, h.accumulation) if a is not None)
 
     def render_frame(self, ctx, settings, frame):
         """One frame. Afterwards ``last_timings`` holds seconds per pass: wall
@@ -122,20 +133,25 @@ class ReSTIRGI:
 
         # Last frame's traced visibility is reused only if no triangle moved.
         geometry_key = scene.geometry_key()
-        static = history is not None and history.visibility is not None \
-            and geometry_key == self._geometry_key
+        moved = history is not None and geometry_key != self._geometry_key
+        static = history is not None and history.visibility is not None and not moved
         self._geometry_key = geometry_key
         # Stored samples are re-traced only if the lighting changed since the
         # last validation: in an unchanged scene a re-traced path (same seed)
         # gives exactly its stored radiance.
-        if settings.validation_interval > 0:
+        accumulating = settings.accumulate > 1
+        relit = False
+        if settings.validation_interval > 0 or accumulating:
             key = scene.lighting_key(geometry_key)
-            self._stale |= self._lighting_key is not None and key != self._lighting_key
+            relit = self._lighting_key is not None and key != self._lighting_key
+            self._stale |= relit
             self._lighting_key = key
+        if settings.validation_interval > 0:
             if history is not None and self._stale and self.frames % settings.validation_interval == 0:
                 validate(ctx, [history.temporal, history.spatial], settings.max_bounces)
                 self.validations += 1
                 self._stale = False
+                relit = True    # the samples' light is now the new light: frames before are stale
         spent("validation", t)
 
         # Every pass below is per pixel, so workers take pixel ranges
@@ -146,6 +162,11 @@ class ReSTIRGI:
             part = gb.part(a, b)
             prev = reproject(scene, part, history) if settings.temporal else np.full(b - a, -1, np.int64)
             hold = reprojected_hold(prev, history.noise_hold) if history is not None else None
+            acc_prev = None
+            if accumulating and history is not None and history.accumulation is not None:
+                motion = motion_to_previous(scene, history, part.object_id[part.index])
+                acc_prev = previous_pixels(scene, part, history, motion, moved_objects(scene, history),
+                                           still_scene=not moved)
             counts = light_sample_counts(part.index, prev, hold, settings.light_samples)
             # Initial samples (several per pixel are streamed into one reservoir).
             initial, direct = initial_samples(ctx, part, settings.seed, frame, 0, settings.max_bounces,
@@ -161,19 +182,23 @@ class ReSTIRGI:
             temporal = temporal_resample(initial, part, history, prev, samplers.uniform(seeds[a:b], 5),
                                          settings.temporal_M_cap, settings.max_age, biased)
             spent("temporal", t)
-            return prev, hold, direct, temporal
+            return prev, hold, direct, temporal, acc_prev
 
-        prev_pix, hold, direct, temporal = concat_rows(ctx.workers.map(new_samples, n))
+        prev_pix, hold, direct, temporal, acc_pix = concat_rows(ctx.workers.map(new_samples, n))
         ctx.accel.poll()    # the resampling passes trace no rays until shading
         if biased:      # the filter trades a little energy for stability: not in the unbiased mode
             boiling_filter(temporal, gb.width, gb.height, settings.boiling_filter)
 
         gb.images()     # the whole-image arrays, made before the workers read them
-        # With 1/Z weights a carried spatial reservoir's weight is w_sum M / Z:
-        # a large M over a small Z compounds frame after frame, so the unbiased
-        # mode carries its spatial history with the temporal cap.
-        cap = settings.spatial_M_cap if biased else min(settings.spatial_M_cap, settings.temporal_M_cap)
-        carry = settings.spatial and history is not None and bool((prev_pix >= 0).any())
+        # The unbiased mode does not carry its spatial reservoirs: with 1/Z
+        # weights a carried reservoir's weight is w_sum M / Z, and once visible
+        # points move (the pixel filter's jitter, a moving camera) a small Z
+        # compounds frame after frame into fireflies (max indirect radiance
+        # 1150 against about 10 on the room, with the file's filter). History
+        # still arrives through the temporal reservoirs; MSE after 16 frames is
+        # the same as with a carried M capped at 5, fireflies gone.
+        cap = settings.spatial_M_cap
+        carry = settings.spatial and biased and history is not None and bool((prev_pix >= 0).any())
         lum_wm = reuse_weights(temporal) if settings.spatial else None
 
         def reuse(a, b):
@@ -212,20 +237,34 @@ class ReSTIRGI:
             # is unchanged).
             spatial.clear(visibility < 0)
         direct_total = gb.emission + direct
+        for a in (direct_total, indirect):
+            np.nan_to_num(a, copy=False, nan=0.0, posinf=0.0, neginf=0.0)
+        acc = None
+        if accumulating:
+            prev_acc = history.accumulation if history is not None and acc_pix is not None else None
+            if relit:           # light that changed would linger for a whole cap
+                restart(prev_acc)
+            elif moved:
+                restart(prev_acc, MOVING_CAP)   # shadows and reflections of moved objects
+            acc = accumulate(prev_acc, acc_pix if prev_acc is not None else np.full(n, -1),
+                             direct_total, indirect, gb.albedo, gb.n, settings.accumulate)
+            direct_total, indirect, albedo, normal = acc.direct, acc.indirect, acc.albedo, acc.normal
+        else:
+            albedo, normal = gb.albedo, gb.n
         color = direct_total + indirect
-        np.nan_to_num(color, copy=False, nan=0.0, posinf=0.0, neginf=0.0)
 
         self.history = FrameHistory(
             width=gb.width, height=gb.height, camera=scene.camera, p=gb.p, n=gb.n,
             ng=gb.ng, depth=gb.depth, valid=gb.valid, object_id=gb.object_id,
             object_keys=list(scene.object_keys), object_matrices=np.asarray(scene.object_matrices),
             signature=_signature(scene), temporal=temporal, spatial=spatial, visibility=visibility,
-            noise_hold=update_noise_hold(direct, gb.valid, gb.width, gb.height, hold))
+            noise_hold=update_noise_hold(direct, gb.valid, gb.width, gb.height, hold),
+            accumulation=acc)
         self.frames += 1
         timings["total"] = time.perf_counter() - t_start
         self.last_timings = timings
         found = float((prev_pix[gb.index] >= 0).mean()) if len(gb.index) else 0.0
-        return FrameResult(color, direct_total, indirect, gb.depth, gb.n, gb.albedo,
+        return FrameResult(color, direct_total, indirect, gb.depth, normal, albedo,
                            spatial.M.copy(), spatial.W.copy(), found)
 
 

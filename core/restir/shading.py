@@ -13,6 +13,7 @@ import numpy as np
 from .. import bsdf
 from ..rows import scale, scatter
 from ..sampling import dot
+from .shift import visible
 
 VISIBILITY_MAX_AGE = 4      # frames a traced visibility is trusted for
 VISIBILITY_MAX_MOVE = 0.01  # how far the visible point may have moved, relative to
@@ -38,7 +39,6 @@ def shade_indirect(ctx, gb, res, visible_own=None, known=None):
     """(P, 3) indirect radiance toward the camera from each pixel's reservoir,
     and the (P,) int8 visibility states it used (traced rays are age 1).
     known: (P,) visibility states already known (0: trace a ray)."""
-    from .spatial import visible
     n = len(gb.valid)
     out = np.zeros((n, 3), np.float32)
     state = np.zeros(n, np.int8)

@@ -10,7 +10,9 @@ receiver changes, so its solid-angle density changes by the Jacobian
 
 import numpy as np
 
+from ..integrators.base import shadow_rays
 from ..reservoirs import target
+from ..rows import gather, scale
 from ..sampling import dot
 
 J_MIN, J_MAX = 0.1, 10.0          # beyond these a shift is rejected
@@ -68,3 +70,22 @@ def shift_weight_of(x2, ng2, lum_wm, x1_owner, x1_receiver, ng_receiver, ns_rece
     with np.errstate(invalid="ignore", over="ignore"):
         w = np.where(ok, lum_wm * cos_r * j, 0.0)
     return w.astype(np.float32)
+
+
+def visible(ctx, x1, ng1, ns1, res, where=None):
+    """True where x1 sees its row's sample point (and each faces the other);
+    only rows where ``where`` is True are traced (the others are False)."""
+    n = len(x1)
+    out = np.zeros(n, bool)
+    rows = None if where is None else np.nonzero(where)[0]
+    if rows is not None:
+        x1, ng1, ns1, res = gather(x1, rows), gather(ng1, rows), gather(ns1, rows), res.view(rows)
+    ok = np.nonzero(target_at(res, x1, ng1, ns1) > 0)[0]
+    if len(ok):
+        x1_r = gather(x1, ok)
+        to = gather(res.x2, ok) - x1_r
+        dist = np.sqrt(np.maximum(dot(to, to), 1e-30))
+        wi = scale(to, 1.0 / dist).astype(np.float32)
+        blocked = ctx.accel.occluded(*shadow_rays(ctx, x1_r, gather(ng1, ok), wi, dist))
+        out[ok if rows is None else rows[ok]] = ~blocked
+    return out

@@ -14,33 +14,13 @@ visibility ray each).
 import numpy as np
 
 from .. import samplers
-from ..integrators.base import shadow_rays
 from ..reservoirs import Reservoirs, choose, finalize, target
-from ..rows import gather, scale, scatter
+from ..rows import gather, scatter
 from ..sampling import dot
-from .shift import J_MAX, J_MIN, jacobian, shift_weight, shift_weight_of, target_at
+from .shift import J_MAX, J_MIN, jacobian, shift_weight, shift_weight_of, target_at, visible
 from .temporal import DEPTH_REL_MAX, NORMAL_COS_MIN
 
 D_SPATIAL = 1000            # first sampler dimension of the spatial pass
-
-
-def visible(ctx, x1, ng1, ns1, res, where=None):
-    """True where x1 sees its row's sample point (and each faces the other);
-    only rows where ``where`` is True are traced (the others are False)."""
-    n = len(x1)
-    out = np.zeros(n, bool)
-    rows = None if where is None else np.nonzero(where)[0]
-    if rows is not None:
-        x1, ng1, ns1, res = gather(x1, rows), gather(ng1, rows), gather(ns1, rows), res.view(rows)
-    ok = np.nonzero(target_at(res, x1, ng1, ns1) > 0)[0]
-    if len(ok):
-        x1_r = gather(x1, ok)
-        to = gather(res.x2, ok) - x1_r
-        dist = np.sqrt(np.maximum(dot(to, to), 1e-30))
-        wi = scale(to, 1.0 / dist).astype(np.float32)
-        blocked = ctx.accel.occluded(*shadow_rays(ctx, x1_r, gather(ng1, ok), wi, dist))
-        out[ok if rows is None else rows[ok]] = ~blocked
-    return out
 
 
 def reuse_weights(temporal):

@@ -1,0 +1,200 @@
+"""Reprojected accumulation of shaded frames (core/restir/accumulation.py) and
+the estimators built on it: stills that average their warm-up frames, and
+several frames of resampling per animation frame (core/render.py).
+
+The pixel filter is on here (Blackman-Harris 1.5 px, the Blender default): the
+visible point of a pixel moves every frame, which is what accumulation is for.
+"""
+
+import dataclasses
+import math
+
+import numpy as np
+import pytest
+
+from core import RenderContext, RenderSettings, render_frame
+from core.camera import PixelFilter
+from core.render import render_restir, settle_frames
+from core.restir import BIASED, UNBIASED, ReSTIRGI, ReSTIRSettings
+from core.restir.accumulation import STILL, accumulate, previous_pixels
+from core.restir.gbuffer import trace_gbuffer
+from core.sampling import luminance
+from scenes import cornell_box, look_at
+from test_restir_vs_path import Reference, assert_same_mean
+
+SIZE = 16
+MAX_BOUNCES = 4
+
+
+def filtered_box(width=SIZE, height=SIZE):
+    scene = cornell_box("area", width, height)
+    scene.filter_width = 1.5
+    return scene
+
+
+@pytest.fixture(scope="module")
+def ctx():
+    c = RenderContext.build(filtered_box())
+    yield c
+    c.close()
+
+
+@pytest.fixture(scope="module")
+def reference(ctx):
+    return Reference(render_frame(ctx, RenderSettings(samples=1024, max_bounces=MAX_BOUNCES, seed=0)))
+
+
+# --- (1) which pixel a pixel was -------------------------------------------------------
+
+def test01_still_camera_maps_every_pixel_onto_itself():
+    """Jittered visible points, misses included: a still view keeps every pixel's history."""
+    scene = filtered_box(24, 24)
+    ctx = RenderContext.build(scene)
+    try:
+        restir = ReSTIRGI()
+        restir.render_frame(ctx, ReSTIRSettings(seed=1), 0)
+        gb = trace_gbuffer(ctx, 0, 1, PixelFilter(1.5))
+        assert (~gb.valid).sum() > 20 and gb.valid.sum() > 200     # both kinds of pixel
+        prev = previous_pixels(scene, gb, restir.history, still_scene=True)
+        assert (prev == np.arange(24 * 24)).all()
+        # The same without knowing the scene is still: the 3x3 test keeps nearly all.
+        assert (previous_pixels(scene, gb, restir.history) == np.arange(24 * 24)).mean() > 0.95
+    finally:
+        ctx.close()
+
+
+def test02_camera_move_maps_pixels_by_the_motion():
+    """A sideways camera move of two pixels' worth at the back wall's depth:
+    back-wall pixels find the pixel two columns over."""
+    scene = filtered_box(32, 32)
+    ctx = RenderContext.build(scene)
+    try:
+        restir = ReSTIRGI()
+        restir.render_frame(ctx, ReSTIRSettings(seed=2), 0)
+        eye, target = np.array([0.0, -3.9, 1.0]), np.array([0.0, 0.0, 1.0])
+        # Pixel size at the back wall (4.9 m away): sensor 36 mm / lens 50 mm over 32 pixels.
+        step = 2 * 4.9 * 36.0 / 50.0 / 32
+        scene.camera = dataclasses.replace(scene.camera, to_world=look_at(eye + [step, 0, 0], target + [step, 0, 0]))
+        gb = trace_gbuffer(ctx, 0, 1, PixelFilter(1.5))
+        prev = previous_pixels(scene, gb, restir.history)
+        pix = np.arange(32 * 32)
+        back = gb.valid & (np.abs(gb.p[:, 1] - 1.0) < 1e-3) & (pix % 32 < 28)
+        assert back.sum() > 100
+        assert (prev[back] == pix[back] + 2).mean() > 0.95
+    finally:
+        ctx.close()
+
+
+def test03_disoccluded_pixels_start_over():
+    """Moving the tall box away uncovers the wall behind it: those pixels have
+    no history in their 3x3 neighbourhood and start over; the rest keep theirs."""
+    scene = filtered_box(32, 32)
+    ctx = RenderContext.build(scene)
+    restir = ReSTIRGI()
+    try:
+        restir.render_frame(ctx, ReSTIRSettings(seed=3), 0)
+        before = restir.history.object_id.copy(), restir.history.depth.copy()
+    finally:
+        ctx.close()
+    moved = dataclasses.replace(scene, vertices=scene.vertices.copy())
+    tall = (scene.vertices[:, 0] < -0.04) & (scene.vertices[:, 0] > -0.61) & (scene.vertices[:, 1] > -0.11) \
+        & (scene.vertices[:, 1] < 0.51) & (scene.vertices[:, 2] > -0.01)
+    moved.vertices[tall, 2] -= 5.0      # sunk through the floor
+    ctx = RenderContext.build(moved)
+    try:
+        gb = trace_gbuffer(ctx, 0, 1, PixelFilter(1.5))
+        prev = previous_pixels(moved, gb, restir.history)
+    finally:
+        ctx.close()
+    depth0 = before[1]
+    uncovered = gb.valid & (gb.depth > 1.2 * depth0) & (depth0 < 1e9)
+    # Pixels 2+ pixels inside the old silhouette: nothing like them nearby last frame.
+    inner = uncovered.reshape(32, 32)
+    core = inner.copy()
+    for dy in (-2, -1, 0, 1, 2):
+        for dx in (-2, -1, 0, 1, 2):
+            core &= np.roll(np.roll(inner, dy, 0), dx, 1)
+    assert core.sum() >= 4
+    assert (prev[core.reshape(-1)] == -1).all()
+    unchanged = gb.valid & (np.abs(gb.depth - depth0) < 0.01 * depth0)
+    assert (prev[unchanged] >= 0).mean() > 0.98
+
+
+def test04_running_mean_and_its_cap():
+    """accumulate() is the plain mean until the cap, then an exponential average."""
+    n = 5
+    acc = None
+    values = [np.full((n, 3), float(v), np.float32) for v in (1, 2, 3, 4, 5, 6)]
+    prev_pix = np.arange(n)
+    for k, v in enumerate(values):
+        acc = accumulate(acc, prev_pix if acc is not None else np.full(n, -1), v, v, v, v, cap=4)
+        if k < 4:
+            assert np.allclose(acc.direct, np.mean([x[0, 0] for x in values[:k + 1]]))
+    assert np.allclose(acc.count, 4)
+    # After the cap, each new frame has weight 1/4.
+    assert np.allclose(acc.direct, 0.75 * (0.75 * 2.5 + 0.25 * 5) + 0.25 * 6)
+    lost = accumulate(acc, np.full(n, -1), values[0], values[0], values[0], values[0], cap=4)
+    assert np.allclose(lost.direct, 1.0) and np.allclose(lost.count, 1)
+
+
+# --- (2) estimators ----------------------------------------------------------------------
+
+def test05_unbiased_still_matches_path_tracing(ctx, reference):
+    """A still in the unbiased mode (mean of the warm-up frames after the
+    first settle_frames) has the path tracer's mean, with the filter on."""
+    runs = []
+    for r in range(40):
+        out = render_restir(ctx, ReSTIRGI(), ReSTIRSettings(mode=UNBIASED, seed=2000 + r, max_bounces=MAX_BOUNCES),
+                            0, frames=8, fresh=True)
+        runs.append(luminance(out.color))
+    assert_same_mean(np.stack(runs).astype(np.float64), reference, "unbiased still, 8 frames")
+
+
+def test06_several_frames_per_frame_match_path_tracing(ctx, reference):
+    """Animation frames after the first, with three frames of resampling each
+    (samples = 3), keep the path tracer's mean in the unbiased mode."""
+    runs = []
+    for r in range(40):
+        restir = ReSTIRGI()
+        settings = ReSTIRSettings(mode=UNBIASED, seed=3000 + r, max_bounces=MAX_BOUNCES, accumulate=4)
+        render_restir(ctx, restir, settings, 0, frames=4, fresh=True)
+        out = render_restir(ctx, restir, settings, 1, frames=3)
+        runs.append(luminance(out.color))
+    assert_same_mean(np.stack(runs).astype(np.float64), reference, "unbiased, 3 frames per frame")
+
+
+@pytest.mark.parametrize("mode", [BIASED, UNBIASED])
+def test07_still_error_falls_as_warmup_grows(ctx, reference, mode):
+    """The warm-up frames are not wasted: four times as many halve the error at least."""
+    def mse(frames):
+        errs = []
+        for seed in range(3):
+            out = render_restir(ctx, ReSTIRGI(), ReSTIRSettings(mode=mode, seed=seed, max_bounces=MAX_BOUNCES),
+                                0, frames=frames, fresh=True)
+            errs.append(float(((luminance(out.color) - reference.mean) ** 2).mean()))
+        return float(np.mean(errs))
+    short, long = mse(8), mse(32)
+    print(f"{mode}: still MSE {short:.5f} (8 frames) -> {long:.5f} (32 frames)")
+    assert long < 0.5 * short
+
+
+def test08_settle_frames():
+    assert settle_frames(1) == 0 and settle_frames(16) == 4 and settle_frames(400) == 8
+    assert STILL > 1e6
+
+
+def test09_accumulation_off_gives_the_frame():
+    """accumulate=1: each frame is its own image (the viewport averages by itself)."""
+    scene = filtered_box(8, 8)
+    ctx = RenderContext.build(scene)
+    try:
+        a, b = ReSTIRGI(), ReSTIRGI()
+        for f in range(3):
+            ra = a.render_frame(ctx, ReSTIRSettings(seed=9, accumulate=1), f)
+            rb = b.render_frame(ctx, ReSTIRSettings(seed=9, accumulate=16), f)
+        assert a.history.accumulation is None
+        assert np.allclose(b.history.accumulation.count, 3)
+        assert not np.allclose(ra.color, rb.color)
+        assert math.isfinite(float(rb.color.sum()))
+    finally:
+        ctx.close()
