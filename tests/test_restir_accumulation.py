@@ -16,7 +16,7 @@ from core import RenderContext, RenderSettings, render_frame
 from core.camera import PixelFilter
 from core.render import render_restir, settle_frames
 from core.restir import BIASED, UNBIASED, ReSTIRGI, ReSTIRSettings
-from core.restir.accumulation import STILL, accumulate, previous_pixels
+from core.restir.accumulation import STILL, Footprint, accumulate, previous_pixels
 from core.restir.gbuffer import trace_gbuffer
 from core.sampling import luminance
 from scenes import cornell_box, look_at
@@ -55,10 +55,10 @@ def test01_still_camera_maps_every_pixel_onto_itself():
         restir.render_frame(ctx, ReSTIRSettings(seed=1), 0)
         gb = trace_gbuffer(ctx, 0, 1, PixelFilter(1.5))
         assert (~gb.valid).sum() > 20 and gb.valid.sum() > 200     # both kinds of pixel
-        prev = previous_pixels(scene, gb, restir.history, still_scene=True)
+        prev = previous_pixels(scene, gb, restir.history, still_scene=True).nearest()
         assert (prev == np.arange(24 * 24)).all()
         # The same without knowing the scene is still: the 3x3 test keeps nearly all.
-        assert (previous_pixels(scene, gb, restir.history) == np.arange(24 * 24)).mean() > 0.95
+        assert (previous_pixels(scene, gb, restir.history).nearest() == np.arange(24 * 24)).mean() > 0.95
     finally:
         ctx.close()
 
@@ -76,7 +76,7 @@ def test02_camera_move_maps_pixels_by_the_motion():
         step = 2 * 4.9 * 36.0 / 50.0 / 32
         scene.camera = dataclasses.replace(scene.camera, to_world=look_at(eye + [step, 0, 0], target + [step, 0, 0]))
         gb = trace_gbuffer(ctx, 0, 1, PixelFilter(1.5))
-        prev = previous_pixels(scene, gb, restir.history)
+        prev = previous_pixels(scene, gb, restir.history).nearest()
         pix = np.arange(32 * 32)
         back = gb.valid & (np.abs(gb.p[:, 1] - 1.0) < 1e-3) & (pix % 32 < 28)
         assert back.sum() > 100
@@ -103,7 +103,7 @@ def test03_disoccluded_pixels_start_over():
     ctx = RenderContext.build(moved)
     try:
         gb = trace_gbuffer(ctx, 0, 1, PixelFilter(1.5))
-        prev = previous_pixels(moved, gb, restir.history)
+        prev = previous_pixels(moved, gb, restir.history).nearest()
     finally:
         ctx.close()
     depth0 = before[1]
@@ -125,16 +125,24 @@ def test04_running_mean_and_its_cap():
     n = 5
     acc = None
     values = [np.full((n, 3), float(v), np.float32) for v in (1, 2, 3, 4, 5, 6)]
-    prev_pix = np.arange(n)
+    same = Footprint.none(n)
+    same.taps[:, 0], same.weights[:, 0] = np.arange(n), 1.0
     for k, v in enumerate(values):
-        acc = accumulate(acc, prev_pix if acc is not None else np.full(n, -1), v, v, v, v, cap=4)
+        acc = accumulate(acc, same if acc is not None else None, v, v, v, v, cap=4)
         if k < 4:
             assert np.allclose(acc.direct, np.mean([x[0, 0] for x in values[:k + 1]]))
     assert np.allclose(acc.count, 4)
     # After the cap, each new frame has weight 1/4.
     assert np.allclose(acc.direct, 0.75 * (0.75 * 2.5 + 0.25 * 5) + 0.25 * 6)
-    lost = accumulate(acc, np.full(n, -1), values[0], values[0], values[0], values[0], cap=4)
+    lost = accumulate(acc, Footprint.none(n), values[0], values[0], values[0], values[0], cap=4)
     assert np.allclose(lost.direct, 1.0) and np.allclose(lost.count, 1)
+    # Half a pixel over: the mean of two pixels' histories.
+    acc.direct[:] = np.arange(n, dtype=np.float32)[:, None]
+    half = Footprint.none(n)
+    half.taps[:, 0], half.taps[:, 1] = np.arange(n), np.minimum(np.arange(n) + 1, n - 1)
+    half.weights[:, :2] = 0.5
+    mid = accumulate(acc, half, values[0], values[0], values[0], values[0], cap=2)
+    assert np.allclose(mid.direct[:-1, 0], 0.5 * (np.arange(n - 1) + 0.5) + 0.5)
 
 
 # --- (2) estimators ----------------------------------------------------------------------

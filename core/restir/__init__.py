@@ -86,6 +86,7 @@ class ReSTIRGI:
         self._lighting_key = None   # Scene.lighting_key of the last frame
         self._geometry_key = None   # Scene.geometry_key of the last frame
         self._stale = False         # the lighting changed since the last validation
+        self._light_edit = False    # lights, materials or world changed since the last validation
 
     def restart_accumulation(self):
         """The next frame starts every pixel's running mean over (accumulation.py)."""
@@ -140,18 +141,29 @@ class ReSTIRGI:
         # last validation: in an unchanged scene a re-traced path (same seed)
         # gives exactly its stored radiance.
         accumulating = settings.accumulate > 1
-        relit = False
+        # What the pixels' running means forget (accumulation.py): everything
+        # after an edit of lights, materials or the world (the lighting key
+        # changed with the geometry as it was), and again when validation
+        # brings the stored samples up to date with that edit; all but the
+        # last MOVING_CAP frames when objects moved or samples were validated
+        # after objects moved (local changes: shadows, reflections).
+        forget_all = forget_old = False
         if settings.validation_interval > 0 or accumulating:
             key = scene.lighting_key(geometry_key)
             relit = self._lighting_key is not None and key != self._lighting_key
             self._stale |= relit
             self._lighting_key = key
+            forget_all = relit and not moved
+            self._light_edit |= forget_all
+            forget_old = moved
         if settings.validation_interval > 0:
             if history is not None and self._stale and self.frames % settings.validation_interval == 0:
                 validate(ctx, [history.temporal, history.spatial], settings.max_bounces)
                 self.validations += 1
                 self._stale = False
-                relit = True    # the samples' light is now the new light: frames before are stale
+                forget_all |= self._light_edit
+                forget_old = True
+                self._light_edit = False
         spent("validation", t)
 
         # Every pass below is per pixel, so workers take pixel ranges
@@ -242,11 +254,11 @@ class ReSTIRGI:
         acc = None
         if accumulating:
             prev_acc = history.accumulation if history is not None and acc_pix is not None else None
-            if relit:           # light that changed would linger for a whole cap
+            if forget_all:
                 restart(prev_acc)
-            elif moved:
-                restart(prev_acc, MOVING_CAP)   # shadows and reflections of moved objects
-            acc = accumulate(prev_acc, acc_pix if prev_acc is not None else np.full(n, -1),
+            elif forget_old:
+                restart(prev_acc, MOVING_CAP)
+            acc = accumulate(prev_acc, acc_pix if prev_acc is not None else None,
                              direct_total, indirect, gb.albedo, gb.n, settings.accumulate)
             direct_total, indirect, albedo, normal = acc.direct, acc.indirect, acc.albedo, acc.normal
         else:

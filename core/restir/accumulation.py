@@ -6,13 +6,14 @@ filter), the direct light of the visible point and the final shading are new
 each frame. On a still or slowly moving view that noise averages away if
 each pixel keeps a running mean of what it showed over the last frames.
 
-Each pixel finds the pixel it was last frame: its visible point is carried to
+Each pixel finds where it was last frame: its visible point is carried to
 the previous frame (the object's motion, then the previous camera), and the
 motion of that point on the film is applied to the pixel's centre (not to its
-jittered sample; a still view maps every pixel onto itself). The history
-there is kept if the pixel's surface was seen in its 3x3 neighbourhood last
-frame (a pixel on an edge sees both sides over its filter footprint, so the
-pixel's own last sample need not match this one); disocclusions start over.
+jittered sample; a still view maps every pixel onto itself). The history is
+read there bilinearly, and kept if the pixel's surface was seen in the 3x3
+pixels around that place last frame (a pixel on an edge sees both sides over
+its filter footprint, so its own last sample need not match this one);
+disocclusions start over.
 The mean is over at most ``cap`` frames (an exponential average once full),
 so light that changes shows after about ``cap`` frames; a change of lighting
 restarts every pixel.
@@ -36,7 +37,7 @@ class Accumulation:
     indirect: np.ndarray    # (P, 3)
     albedo: np.ndarray      # (P, 3)
     normal: np.ndarray      # (P, 3) mean of the shading normals (not renormalised)
-    count: np.ndarray       # (P,) float32 frames in the mean
+    count: np.ndarray       # (P,) float32 frames in the mean (fractional after bilinear reads)
 
     @property
     def nbytes(self):
@@ -61,20 +62,49 @@ def film_motion(scene, history, p, motion=None):
     return cur, prev, depth
 
 
+@dataclass
+class Footprint:
+    """Where each pixel's history lies in last frame's image: up to four pixels
+    (bilinear taps around the reprojected centre) and their weights, which sum
+    to one where history was found and to zero where the pixel starts over."""
+    taps: np.ndarray        # (N, 4) int64 pixel indices (0 where unused)
+    weights: np.ndarray     # (N, 4) float32
+
+    @property
+    def found(self):
+        return self.weights.sum(axis=1) > 0
+
+    def nearest(self):
+        """The tap of largest weight, -1 where nothing was found."""
+        k = self.weights.argmax(axis=1)
+        q = np.take_along_axis(self.taps, k[:, None], axis=1)[:, 0]
+        return np.where(self.found, q, -1)
+
+    @classmethod
+    def none(cls, n):
+        return cls(np.zeros((n, 4), np.int64), np.zeros((n, 4), np.float32))
+
+
 def previous_pixels(scene, gb, history, motion=None, moved=None, still_scene=False):
-    """Last frame's pixel of every pixel of the part ``gb`` (-1: start over).
+    """Footprint of last frame's history of every pixel of the part ``gb``.
 
     motion: 4x4 current -> previous matrices of gb's valid rows, or None;
     moved: temporal.moved_objects(), or None; still_scene: no triangle moved
-    (with an unchanged camera, every pixel is then where it was)."""
+    (with an unchanged camera, every pixel is then where it was).
+
+    A moving view reads the history bilinearly at the reprojected centre:
+    taking the nearest pixel instead rounds by up to half a pixel every
+    frame, and those errors add up into streaks along the motion."""
     n = len(gb.valid)
-    out = np.full(n, -1, np.int64)
+    out = Footprint.none(n)
     if history is None or (history.width, history.height) != (gb.width, gb.height):
         return out
     w, h = gb.width, gb.height
     pix = np.arange(gb.offset, gb.offset + n, dtype=np.int64)
     if still_scene and same_view(scene.camera, history.camera):
-        return pix              # a still view: every pixel is where it was
+        out.taps[:, 0] = pix    # a still view: every pixel is where it was
+        out.weights[:, 0] = 1.0
+        return out
     centre = np.stack([pix % w, pix // w], axis=1).astype(np.float32) + 0.5
     idx = gb.index
     miss = np.nonzero(~gb.valid)[0]
@@ -94,47 +124,82 @@ def previous_pixels(scene, gb, history, motion=None, moved=None, still_scene=Fal
     depth[idx] = depth_v
     inside[idx] &= depth_v > 0
     obj = gb.object_id
+    if moved is not None:
+        now, before = moved
+        moving_now = np.where(obj >= 0, now[np.maximum(obj, 0)], False)
+
+    def like(qn):
+        """Last frame's sample of pixels qn was this pixel's kind of surface."""
+        was_valid = history.valid[qn]
+        obj_prev = history.object_id[qn]
+        same = np.where(gb.valid, was_valid & (obj_prev == obj)
+                        & (np.abs(history.depth[qn] - depth) <= DEPTH_REL_MAX * np.maximum(depth, 1e-6)),
+                        ~was_valid)
+        return same, obj_prev
+
+    # Disocclusion: this pixel's surface was nowhere in the 3x3 pixels around
+    # where it was (a pixel on an edge sees both sides over its filter
+    # footprint, so the pixel's own last sample need not be like this one).
     seen = np.zeros(n, bool)
     for dy in (-1, 0, 1):
         for dx in (-1, 0, 1):
-            xs, ys = np.clip(x + dx, 0, w - 1), np.clip(y + dy, 0, h - 1)
-            qn = ys * w + xs
-            was_valid = history.valid[qn]
-            same = np.where(gb.valid,
-                            was_valid & (history.object_id[qn] == obj)
-                            & (np.abs(history.depth[qn] - depth) <= DEPTH_REL_MAX * np.maximum(depth, 1e-6)),
-                            ~was_valid)
-            seen |= same
+            seen |= like(np.clip(y + dy, 0, h - 1) * w + np.clip(x + dx, 0, w - 1))[0]
     ok = inside & seen
-    q = np.where(inside, y * w + x, 0)
-    if moved is not None:
-        # Where a moving object passed, the pixel's history shows it: a pixel
-        # that last showed another object, either of them moving, starts over
-        # (no trail behind moving objects; the 3x3 test would keep one).
-        now, before = moved
-        obj_prev = history.object_id[q]
-        ghost = (obj_prev != obj) & (np.where(obj >= 0, now[np.maximum(obj, 0)], False)
-                                     | np.where(obj_prev >= 0, before[np.maximum(obj_prev, 0)], False))
-        ok &= ~ghost
-    out[ok] = q[ok]
+    # Bilinear taps; a tap whose last sample was another surface is left out
+    # (unless all are: then the nearest pixel stands for all).
+    fx, fy = target[:, 0] - 0.5, target[:, 1] - 0.5
+    x0, y0 = np.floor(fx).astype(np.int64), np.floor(fy).astype(np.int64)
+    tx, ty = (fx - x0).astype(np.float32), (fy - y0).astype(np.float32)
+    nearest = np.clip(y, 0, h - 1) * w + np.clip(x, 0, w - 1)
+    for k, (dx, dy, wk) in enumerate(((0, 0, (1 - tx) * (1 - ty)), (1, 0, tx * (1 - ty)),
+                                      (0, 1, (1 - tx) * ty), (1, 1, tx * ty))):
+        xs, ys = x0 + dx, y0 + dy
+        qn = np.clip(ys, 0, h - 1) * w + np.clip(xs, 0, w - 1)
+        same, obj_prev = like(qn)
+        keep = same & (xs >= 0) & (xs < w) & (ys >= 0) & (ys < h)
+        if moved is not None:
+            # Where a moving object passed, history shows it: no trails.
+            moving_prev = np.where(obj_prev >= 0, before[np.maximum(obj_prev, 0)], False)
+            keep &= ~((obj_prev != obj) & (moving_now | moving_prev))
+        out.taps[:, k] = qn
+        out.weights[:, k] = np.where(keep, wk, 0.0)
+    total = out.weights.sum(axis=1)
+    alone = ok & (total <= 1e-6)
+    if moved is not None:       # the nearest pixel must not be a trail either
+        obj_prev = history.object_id[nearest]
+        moving_prev = np.where(obj_prev >= 0, before[np.maximum(obj_prev, 0)], False)
+        alone &= ~((obj_prev != obj) & (moving_now | moving_prev))
+    out.taps[alone, 0], out.weights[alone] = nearest[alone], 0.0
+    out.weights[alone, 0] = 1.0
+    total = np.where(alone, 1.0, total)
+    out.weights *= np.where(ok & (total > 1e-6), 1.0 / np.maximum(total, 1e-6), 0.0)[:, None]
     return out
 
 
-def accumulate(prev, prev_pix, direct, indirect, albedo, normal, cap):
-    """This frame's Accumulation: the history at prev_pix (rows of the part)
-    blended with this frame's values, over at most ``cap`` frames. prev: last
-    frame's Accumulation (whole image) or None."""
-    n = len(prev_pix)
-    if prev is None or cap <= 1:
+def accumulate(prev, footprint, direct, indirect, albedo, normal, cap):
+    """This frame's Accumulation: the history over ``footprint`` (rows of the
+    part) blended with this frame's values, over at most ``cap`` frames.
+    prev: last frame's Accumulation (whole image) or None."""
+    n = len(direct)
+    if prev is None or cap <= 1 or footprint is None:
         count = np.ones(n, np.float32)
         return Accumulation(direct.copy(), indirect.copy(), albedo.copy(), normal.copy(), count)
-    found = prev_pix >= 0
-    q = np.maximum(prev_pix, 0)
-    count = np.where(found, np.minimum(np.take(prev.count, q), cap - 1), 0).astype(np.float32) + 1
+    wts = footprint.weights
+    taps = [k for k in range(4) if wts[:, k].any()]
+
+    def history(a):
+        out = None
+        for k in taps:
+            v = gather(a, footprint.taps[:, k])
+            v *= wts[:, k, None] if v.ndim == 2 else wts[:, k]
+            out = v if out is None else out + v
+        return out if out is not None else np.zeros_like(a[:n])
+
+    count = np.minimum(history(prev.count), cap - 1).astype(np.float32) + 1
     a = (1.0 / count)[:, None]
 
     def blend(old, new):
-        out = gather(old, q)
+        out = history(old)
         out -= new
         out *= 1.0 - a          # = old + (new - old) / count
         out += new
