@@ -71,7 +71,7 @@ class RestirGISceneSettings(bpy.types.PropertyGroup):
         description="Radius in pixels within which spatial neighbours are chosen",
     )
     light_samples: IntProperty(
-        name="Light Samples", default=16, min=1, max=64,
+        name="Light Samples", default=4, min=1, max=64,
         description="ReSTIR GI: shadow rays per frame for the direct light of pixels whose direct "
                     "light was noisy last frame (penumbrae, several lights); other pixels get one",
     )

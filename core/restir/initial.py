@@ -7,6 +7,12 @@ by the path tracer (NEE + MIS, up to max_bounces). The same ray also completes
 the direct lighting of x1: emitters it finds are weighted against NEE by MIS.
 A ray that escapes becomes a sky sample (the world is resampled like indirect
 light, since no light sampling covers it).
+
+Reservoirs carry light for the diffuse lobe only (their target is
+luminance(Lo) x cos, the shape of a Lambert lobe): a neighbour's sample reused
+on a glossy lobe lands where the lobe is peaked or empty, which showed as
+sparkle on metals that no number of frames averaged away. The glossy lobe's
+indirect light is this sample's own path-traced estimate, returned apart.
 """
 
 import numpy as np
@@ -18,7 +24,7 @@ from ..integrators.path import radiance_from_surface
 from ..interaction import surface_hits
 from ..reservoirs import Reservoirs, target
 from ..rows import gather, row_max, scale, scatter, scatter_add
-from ..sampling import (cosine_hemisphere_pdf, dot, power_heuristic,
+from ..sampling import (INV_PI, cosine_hemisphere_pdf, dot, power_heuristic,
                         square_to_cosine_hemisphere, square_to_uniform_hemisphere,
                         uniform_hemisphere_pdf)
 
@@ -46,17 +52,19 @@ def world_distance(scene):
 
 def initial_samples(ctx, gb, seed, frame, sample, max_bounces, sampling=COSINE, light_samples=1):
     """Reservoirs (one per pixel, empty where nothing was hit) holding each
-    pixel's new sample, and the direct light of each pixel (P, 3), estimated
+    pixel's new sample; the direct light of each pixel (P, 3), estimated
     with ``light_samples`` NEE samples averaged (each keeps its one-sample MIS
-    weight, so with the sample ray's own weight they still sum to one).
+    weight, so with the sample ray's own weight they still sum to one); and the
+    indirect light of each pixel's glossy lobe (P, 3) from the sample's path.
     light_samples: one count for all, or one per visible point (gb.index order)."""
     scene = ctx.scene
     n_pix = len(gb.valid)
     res = Reservoirs.empty(n_pix)
     direct = np.zeros((n_pix, 3), np.float32)
+    glossy_light = np.zeros((n_pix, 3), np.float32)
     surf, index = gb.surf, gb.index
     if len(index) == 0:
-        return res, direct
+        return res, direct, glossy_light
     seeds = samplers.path_seeds(seed, frame, index + gb.offset, sample)
     frame_sh = gb.frame
     params, wo_l = frame_sh.params, frame_sh.wo_local
@@ -144,8 +152,15 @@ def initial_samples(ctx, gb, seed, frame, sample, max_bounces, sampling=COSINE, 
         res.pdf[pm] = pdf[miss]
         res.seed[pm] = seeds[miss]
         rows2, pix = np.concatenate([rows2, miss]), np.concatenate([pix, pm])
-    p_hat = target(gather(res.lo, pix)) * cos[rows2]
+    lo_all = gather(res.lo, pix)
+    p_hat = target(lo_all) * cos[rows2]
     w = np.where(p_hat > 0, p_hat / pdf[rows2], 0.0).astype(np.float32)
     res.w_sum[pix] = w
     res.M[index] = 1.0          # every pixel with a visible point drew one candidate
-    return res, direct
+    if glossy.any():
+        # (f - f_diffuse) cos / pdf: the glossy lobe's share of the sample's weight.
+        g = gather(weight, rows2) - scale(gather(params.diffuse, rows2),
+                                          (cos[rows2] * INV_PI / np.where(pdf[rows2] > 0, pdf[rows2], 1.0))
+                                          .astype(np.float32))
+        scatter(glossy_light, pix, np.nan_to_num(np.maximum(g, 0.0) * lo_all, nan=0.0, posinf=0.0))
+    return res, direct, glossy_light

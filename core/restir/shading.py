@@ -10,9 +10,8 @@ traced a - 1 frames ago from (nearly) this visible point to this sample.
 
 import numpy as np
 
-from .. import bsdf
 from ..rows import scale, scatter
-from ..sampling import dot
+from ..sampling import INV_PI, dot
 from .shift import visible
 
 VISIBILITY_MAX_AGE = 4      # frames a traced visibility is trusted for
@@ -36,7 +35,8 @@ def carried_visibility(prev_state, from_prev, owner_p, p, x2):
 
 
 def shade_indirect(ctx, gb, res, visible_own=None, known=None):
-    """(P, 3) indirect radiance toward the camera from each pixel's reservoir,
+    """(P, 3) indirect radiance toward the camera from each pixel's reservoir
+    through the diffuse lobe,
     and the (P,) int8 visibility states it used (traced rays are age 1).
     known: (P,) visibility states already known (0: trace a ray)."""
     n = len(gb.valid)
@@ -52,8 +52,10 @@ def shade_indirect(ctx, gb, res, visible_own=None, known=None):
     wi = scale(to, 1.0 / dist).astype(np.float32)
     frame = gb.frame
     wi_l = frame.local(surf, wi)
-    f = bsdf.evaluate(frame.params, frame.wo_local, wi_l)
+    # The diffuse lobe only: the glossy lobe's indirect light comes from each
+    # pixel's own new sample (initial.py).
     cos = np.maximum(wi_l[:, 2], 0.0)
+    f = scale(frame.params.diffuse, (wi_l[:, 2] > 0) * INV_PI)
     if visible_own is not None:
         vis = visible_own[idx]
         s = np.where(vis, 1, -1)
