@@ -1,10 +1,15 @@
-"""Shared by the benchmarks: load the add-on from this tree and export a .blend."""
+"""Shared by the benchmarks: load the add-on from this tree, export a .blend,
+render frames of a .blend through bpy as a user does (bench/equal_time.py)."""
 
+import contextlib
 import importlib.util
 import os
 import sys
 import tempfile
+import time
 from pathlib import Path
+
+import numpy as np
 
 ROOT = Path(__file__).resolve().parent.parent
 OUT = ROOT / "bench" / "out"
@@ -36,3 +41,104 @@ def export_blend(path, scale=1.0):
     h = max(1, int(r.resolution_y * r.resolution_percentage / 100 * scale))
     core_scene, _ = export_scene(bpy.context.evaluated_depsgraph_get(), w, h)
     return core_scene
+
+
+# ---------------------------------------------------------------- renders through bpy
+
+LUMA = np.array([0.2126, 0.7152, 0.0722], np.float32)
+
+
+def luminance(img):
+    return img[..., :3] @ LUMA
+
+
+@contextlib.contextmanager
+def captured_output(log_path):
+    """Send what Blender prints (progress lines, reports) to ``log_path``
+    (appended) instead of the terminal; yields a list that holds the report
+    lines ("Error: ...", "Warning: ...") and tracebacks afterwards."""
+    found = []
+    sys.stdout.flush()
+    sys.stderr.flush()
+    saved = os.dup(1), os.dup(2)
+    log = open(log_path, "ab")
+    start = log.tell()
+    os.dup2(log.fileno(), 1)
+    os.dup2(log.fileno(), 2)
+    try:
+        yield found
+    finally:
+        sys.stdout.flush()
+        sys.stderr.flush()
+        for fd in (1, 2):
+            os.dup2(saved[fd - 1], fd)
+            os.close(saved[fd - 1])
+        log.close()
+        with open(log_path, "rb") as f:
+            f.seek(start)
+            text = f.read().decode(errors="replace")
+        found += [line for line in text.splitlines()
+                  if line.startswith(("Error", "Warning", "Traceback", "ERROR"))
+                  or "Exception" in line or "render failed" in line]
+
+
+def pin_camera(scene, frame):
+    """Remove the scene camera's animation, leaving it at its pose of ``frame``."""
+    scene.frame_set(frame)
+    cam = scene.camera
+    pose = cam.matrix_world.copy()
+    cam.animation_data_clear()
+    cam.matrix_world = pose
+    scene.frame_set(frame)
+
+
+def render_frames(blend, frames, setup, pin=None, log_path=None):
+    """Open ``blend``, optionally pin its camera at frame ``pin``, call
+    ``setup(scene)``, and render ``frames`` (consecutive) as a user does:
+    ``bpy.ops.render.render(animation=True)`` into 32-bit OpenEXR files.
+
+    Returns ({frame: (H, W, 3) linear image, bottom row first},
+    {frame: seconds from render_pre to render_post}, [report lines])."""
+    import bpy
+    from restir_gi.core.film import read_exr
+    start, seconds = {}, {}
+
+    def pre(sc, *_):
+        start[sc.frame_current] = time.perf_counter()
+
+    def post(sc, *_):
+        seconds[sc.frame_current] = time.perf_counter() - start[sc.frame_current]
+
+    log_path = log_path or OUT / "blender.log"
+    OUT.mkdir(parents=True, exist_ok=True)
+    with tempfile.TemporaryDirectory(prefix="restir-bench-") as tmp, \
+            captured_output(log_path) as reports:
+        bpy.ops.wm.open_mainfile(filepath=str(blend), load_ui=False)
+        scene = bpy.context.scene
+        if pin is not None:
+            pin_camera(scene, pin)
+        setup(scene)
+        scene.frame_start, scene.frame_end, scene.frame_step = frames[0], frames[-1], 1
+        r = scene.render
+        r.use_file_extension, r.use_overwrite, r.use_placeholder = True, True, False
+        s = r.image_settings
+        s.media_type, s.file_format, s.color_mode, s.color_depth = 'IMAGE', 'OPEN_EXR', 'RGB', '32'
+        r.filepath = os.path.join(tmp, "frame_####")
+        bpy.app.handlers.render_pre.append(pre)
+        bpy.app.handlers.render_post.append(post)
+        try:
+            result = bpy.ops.render.render(animation=True, scene=scene.name)
+        finally:
+            bpy.app.handlers.render_pre.remove(pre)
+            bpy.app.handlers.render_post.remove(post)
+        if result != {'FINISHED'}:
+            raise RuntimeError(f"render of {blend} did not finish: {result}; see {log_path}")
+        images = {}
+        for f in frames:
+            path = os.path.join(tmp, f"frame_{f:04d}.exr")
+            if not os.path.isfile(path) or f not in seconds:
+                raise RuntimeError(f"frame {f} of {blend} was not written; see {log_path}")
+            images[f] = read_exr(path)
+            if not np.isfinite(images[f]).all():
+                raise RuntimeError(f"frame {f} of {blend} has non-finite pixels")
+    return images, seconds, reports
