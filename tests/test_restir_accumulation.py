@@ -233,25 +233,3 @@ def test10_glossy_unbiased_matches_path_tracing():
         assert_same_mean(np.stack(runs).astype(np.float64), ref, "glossy box, unbiased still")
     finally:
         ctx.close()
-
-
-def test11_direct_history_is_clipped_on_a_moving_view():
-    """neighbourhood_range gives each pixel's 3x3 minimum and maximum; history
-    outside it is clipped before blending (a bright edge that moved away)."""
-    from core.restir.accumulation import neighbourhood_range
-    img = np.zeros((4 * 5, 1), np.float32)
-    img[7] = 10.0                                   # pixel (2, 1) of a 5 x 4 image
-    lo, hi = neighbourhood_range(img, 5, 4)
-    near = np.zeros((4, 5), bool)
-    near[0:3, 1:4] = True
-    assert (hi[:, 0].reshape(4, 5)[near] == 10).all() and (hi[:, 0].reshape(4, 5)[~near] == 0).all()
-    assert (lo == 0).all()
-    n = 3
-    same = Footprint.none(n)
-    same.taps[:, 0], same.weights[:, 0] = np.arange(n), 1.0
-    bright = np.full((n, 3), 10.0, np.float32)
-    acc = accumulate(None, None, bright, bright, bright, bright, cap=8)
-    dark = np.zeros((n, 3), np.float32)
-    clipped = accumulate(acc, same, dark, dark, dark, dark, cap=8, direct_range=(dark, dark + 1.0))
-    assert np.allclose(clipped.direct, 0.5)         # history clipped to 1, then (1 + 0) / 2
-    assert np.allclose(clipped.indirect, 5.0)       # indirect history is not clipped

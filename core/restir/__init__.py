@@ -18,7 +18,7 @@ from .. import samplers
 from ..camera import PixelFilter
 from ..parallel import concat_rows
 from ..rows import gather
-from .accumulation import STILL, accumulate, neighbourhood_range, previous_pixels, restart, same_view
+from .accumulation import STILL, accumulate, previous_pixels, restart
 from .adaptive_direct import light_sample_counts, reprojected_hold, update_noise_hold
 from ..reservoirs import finalize, merge
 from .boiling import boiling_filter
@@ -264,11 +264,8 @@ class ReSTIRGI:
                 restart(prev_acc)
             elif forget_old:
                 restart(prev_acc, MOVING_CAP)
-            bounds = None
-            if prev_acc is not None and (moved or not same_view(scene.camera, history.camera)):
-                bounds = neighbourhood_range(direct_total, gb.width, gb.height)
             acc = accumulate(prev_acc, acc_pix if prev_acc is not None else None,
-                             direct_total, indirect, gb.albedo, gb.n, settings.accumulate, bounds)
+                             direct_total, indirect, gb.albedo, gb.n, settings.accumulate)
             direct_total, indirect, albedo, normal = acc.direct, acc.indirect, acc.albedo, acc.normal
         else:
             albedo, normal = gb.albedo, gb.n

@@ -13,11 +13,7 @@ jittered sample; a still view maps every pixel onto itself). The history is
 read there bilinearly, and kept if the pixel's surface was seen in the 3x3
 pixels around that place last frame (a pixel on an edge sees both sides over
 its filter footprint, so its own last sample need not match this one);
-disocclusions start over. Bilinear reads blur a little every frame; on a
-moving view the direct light's history is clipped to the range of this
-frame's 3x3 neighbourhood (as temporal anti-aliasing does), so sharp bright
-edges such as a sunlit stripe stay sharp. The indirect light is too noisy in
-one frame for such a range to mean anything, and is left alone.
+disocclusions start over.
 The mean is over at most ``cap`` frames (an exponential average once full),
 so light that changes shows after about ``cap`` frames; a change of lighting
 restarts every pixel.
@@ -180,25 +176,10 @@ def previous_pixels(scene, gb, history, motion=None, moved=None, still_scene=Fal
     return out
 
 
-def neighbourhood_range(image, width, height):
-    """Per-channel minimum and maximum of each pixel's 3x3 neighbourhood of a
-    (P, C) image (rows y * width + x)."""
-    img = image.reshape(height, width, -1)
-    pad = np.pad(img, ((1, 1), (1, 1), (0, 0)), mode="edge")
-    lo, hi = img.copy(), img.copy()
-    for dy in (0, 1, 2):
-        for dx in (0, 1, 2):
-            v = pad[dy:dy + height, dx:dx + width]
-            np.minimum(lo, v, out=lo)
-            np.maximum(hi, v, out=hi)
-    return lo.reshape(image.shape), hi.reshape(image.shape)
-
-
-def accumulate(prev, footprint, direct, indirect, albedo, normal, cap, direct_range=None):
+def accumulate(prev, footprint, direct, indirect, albedo, normal, cap):
     """This frame's Accumulation: the history over ``footprint`` (rows of the
     part) blended with this frame's values, over at most ``cap`` frames.
-    prev: last frame's Accumulation (whole image) or None. direct_range: (lo,
-    hi) rows that the direct light's history is clipped to (a moving view)."""
+    prev: last frame's Accumulation (whole image) or None."""
     n = len(direct)
     if prev is None or cap <= 1 or footprint is None:
         count = np.ones(n, np.float32)
@@ -217,16 +198,14 @@ def accumulate(prev, footprint, direct, indirect, albedo, normal, cap, direct_ra
     count = np.minimum(history(prev.count), cap - 1).astype(np.float32) + 1
     a = (1.0 / count)[:, None]
 
-    def blend(old, new, bounds=None):
+    def blend(old, new):
         out = history(old)
-        if bounds is not None:
-            np.clip(out, bounds[0], bounds[1], out=out)
         out -= new
         out *= 1.0 - a          # = old + (new - old) / count
         out += new
         return out
 
-    return Accumulation(blend(prev.direct, direct, direct_range), blend(prev.indirect, indirect),
+    return Accumulation(blend(prev.direct, direct), blend(prev.indirect, indirect),
                         blend(prev.albedo, albedo), blend(prev.normal, normal), count)
 
 
