@@ -29,6 +29,10 @@ of the reference's mean in ours. The reference row gives its render time and
 its own noise (MSE), estimated from the spread of the 16-spp frames:
 var_16 x 16 / ref-spp; every MSE above includes it.
 
+On the still camera, --stills adds still renders (F12) in the unbiased mode
+with 16 and 64 warm-up frames: their MSE, and the gains at the time the whole
+still took (Cycles' MSE extrapolated along its curve).
+
 Writes bench/out/equal_time.md and bench/out/equal_time_<scene>_<camera>.png
 (ReSTIR biased | ReSTIR unbiased | Cycles at our biased frame time | reference);
 --quick (8 frames, reference 64 spp) writes *_quick.* instead. What Blender
@@ -66,12 +70,15 @@ def parse_args():
     ap.add_argument("--modes", default="biased,unbiased")
     ap.add_argument("--cameras", default="still,moving")
     ap.add_argument("--quick", action="store_true", help="smoke run: 8 frames, 64-spp references")
+    ap.add_argument("--stills", default="16,64",
+                    help="warm-up frames of the unbiased still renders (F12) on the still camera; '' for none")
     args = ap.parse_args()
     args.frames = args.frames or (8 if args.quick else 32)
     args.ref_spp = args.ref_spp or (64 if args.quick else 1024)
     args.scenes = [s for s in args.scenes.split(",") if s]
     args.modes = [m for m in args.modes.split(",") if m]
     args.cameras = [c for c in args.cameras.split(",") if c]
+    args.stills = [int(w) for w in args.stills.split(",") if w]
     for name, given, known in (("scene", args.scenes, SCENES), ("mode", args.modes, MODES),
                                ("camera", args.cameras, CAMERAS)):
         bad = [g for g in given if g not in known]
@@ -216,6 +223,16 @@ def run_case(name, camera, args):
         rows.append([f"ReSTIR {label}", t, e, (e_pt * t_pt) / (e * t),
                      cycles_mse_at(t, (t_c1, e_c1), (t_c16, e_c16)) / e, ratio, black])
         pictures[label] = img
+    # Still renders (F12): one frame after `warmup` frames of resampling, whose
+    # mean is the image; the time is the whole render's.
+    for warmup in (args.stills if camera == "still" else []):
+        images, seconds, reps = render_frames(blend, [n], ours(MODES["unbiased"], warmup), pin=1)
+        report(f"still {warmup}", reps)
+        img, t = images[n], seconds[n]
+        e = mse(img, ref)
+        ratio, black = brightness(img, ref)
+        rows.append([f"F12 still unbiased, {warmup} warm-up (whole render)", t, e, (e_pt * t_pt) / (e * t),
+                     cycles_mse_at(t, (t_c1, e_c1), (t_c16, e_c16)) / e, ratio, black])
     rows.append(["PT 1 spp (ours)", t_pt, e_pt, 1.0, None, mean_ratio(pt_imgs), None])
     rows.append(["Cycles 1 spp", t_c1, e_c1, None, 1.0, mean_ratio(c1_imgs), None])
     rows.append(["Cycles 16 spp", t_c16, e_c16, None, None, mean_ratio(c16_imgs), None])

@@ -233,3 +233,31 @@ def test10_glossy_unbiased_matches_path_tracing():
         assert_same_mean(np.stack(runs).astype(np.float64), ref, "glossy box, unbiased still")
     finally:
         ctx.close()
+
+
+def test11_catmull_rom_history_reads():
+    """The 4x4 window's weights sum to one, interpolate (t = 0 reads the pixel
+    itself), reproduce a linear ramp exactly, and the read is clipped to the
+    inner 2x2 taps' range (no overshoot at a sharp edge)."""
+    from core.restir.accumulation import TAPS, _catmull_rom
+    t = np.linspace(0, 0.99, 12).astype(np.float32)
+    wx = np.stack(_catmull_rom(t))
+    assert np.allclose(wx.sum(axis=0), 1.0, atol=1e-6)
+    assert np.allclose(np.stack(_catmull_rom(np.zeros(1, np.float32)))[:, 0], [0, 1, 0, 0])
+    assert np.allclose((wx * np.arange(-1, 3)[:, None]).sum(axis=0), t, atol=1e-6)
+    assert TAPS[:4] == [(0, 0), (1, 0), (0, 1), (1, 1)] and len(set(TAPS)) == 16
+    # A step edge read half a pixel over: the value lies between the two sides.
+    n = 1
+    fp = Footprint.none(n)
+    xs = [dx for dx, _dy in TAPS]
+    fp.taps[0] = np.array([2 + dx for dx in xs])          # a row of pixels 1..4, edge between 2 and 3
+    wts = np.stack(_catmull_rom(np.array([0.5], np.float32)))[:, 0]
+    fp.weights[0] = [wts[dx + 1] * (1.0 if dy == 0 else 0.0) for dx, dy in TAPS]
+    img = np.zeros((6, 3), np.float32)
+    img[3:] = 10.0
+    prev = accumulate(None, None, img, img, img, img, cap=8)
+    prev.count[:] = 8
+    zero = np.zeros((n, 3), np.float32)
+    out = accumulate(prev, fp, zero, zero, zero, zero, cap=8)
+    hist = out.direct[0, 0] * 8 / 7                      # undo the blend with this frame's 0
+    assert 0.0 <= hist <= 10.0 and abs(hist - 5.0) < 1e-4
