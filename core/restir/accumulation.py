@@ -32,16 +32,35 @@ STILL = 1 << 30             # cap for a still image: the plain mean of every fra
 
 @dataclass
 class Accumulation:
-    """Running means per pixel (full-image rows) and the frames each holds."""
-    direct: np.ndarray      # (P, 3)
-    indirect: np.ndarray    # (P, 3)
-    albedo: np.ndarray      # (P, 3)
-    normal: np.ndarray      # (P, 3) mean of the shading normals (not renormalised)
-    count: np.ndarray       # (P,) float32 frames in the mean (fractional after bilinear reads)
+    """Running means per pixel (full-image rows) and the frames each holds,
+    packed in one (P, 13) array so a history read is one gather per tap."""
+    data: np.ndarray        # (P, 13) float32: direct, indirect, albedo, normal, count
+
+    @property
+    def direct(self):
+        return self.data[:, 0:3]
+
+    @property
+    def indirect(self):
+        return self.data[:, 3:6]
+
+    @property
+    def albedo(self):
+        return self.data[:, 6:9]
+
+    @property
+    def normal(self):
+        """Mean of the shading normals (not renormalised)."""
+        return self.data[:, 9:12]
+
+    @property
+    def count(self):
+        """Frames in the mean (fractional after interpolated reads)."""
+        return self.data[:, 12]
 
     @property
     def nbytes(self):
-        return sum(a.nbytes for a in (self.direct, self.indirect, self.albedo, self.normal, self.count))
+        return self.data.nbytes
 
 
 def same_view(a, b):
@@ -129,23 +148,18 @@ def previous_pixels(scene, gb, history, motion=None, moved=None, still_scene=Fal
         now, before = moved
         moving_now = np.where(obj >= 0, now[np.maximum(obj, 0)], False)
 
+    tolerance = DEPTH_REL_MAX * np.maximum(depth, 1e-6)
+    tolerance[~gb.valid] = np.inf
+
     def like(qn):
-        """Last frame's sample of pixels qn was this pixel's kind of surface."""
-        was_valid = history.valid[qn]
-        obj_prev = history.object_id[qn]
-        same = np.where(gb.valid, was_valid & (obj_prev == obj)
-                        & (np.abs(history.depth[qn] - depth) <= DEPTH_REL_MAX * np.maximum(depth, 1e-6)),
-                        ~was_valid)
+        """Last frame's sample of pixels qn was this pixel's kind of surface:
+        the same object at a similar depth, or for a pixel that sees nothing,
+        nothing (object id -1 on misses)."""
+        obj_prev = np.take(history.object_id, qn)
+        same = obj_prev == obj
+        same &= np.abs(np.take(history.depth, qn) - depth) <= tolerance
         return same, obj_prev
 
-    # Disocclusion: this pixel's surface was nowhere in the 3x3 pixels around
-    # where it was (a pixel on an edge sees both sides over its filter
-    # footprint, so the pixel's own last sample need not be like this one).
-    seen = np.zeros(n, bool)
-    for dy in (-1, 0, 1):
-        for dx in (-1, 0, 1):
-            seen |= like(np.clip(y + dy, 0, h - 1) * w + np.clip(x + dx, 0, w - 1))[0]
-    ok = inside & seen
     # Taps of a 4x4 Catmull-Rom window around the reprojected centre, the
     # inner 2x2 (the bilinear taps) first. Bilinear reads blur a little every
     # frame, and over a history of 16 frames that widened a sunlit stripe by
@@ -158,12 +172,18 @@ def previous_pixels(scene, gb, history, motion=None, moved=None, still_scene=Fal
     nearest = np.clip(y, 0, h - 1) * w + np.clip(x, 0, w - 1)
     cr_x, cr_y = _catmull_rom(tx), _catmull_rom(ty)
     bilinear = {(0, 0): (1 - tx) * (1 - ty), (1, 0): tx * (1 - ty), (0, 1): (1 - tx) * ty, (1, 1): tx * ty}
-    sharp = ok.copy()
+    # Disocclusion: this pixel's surface was nowhere in the 3x3 pixels around
+    # where it was (a pixel on an edge sees both sides over its filter
+    # footprint, so the pixel's own last sample need not be like this one).
+    # Those 3x3 pixels lie in the window (x is x0 or x0 + 1, y likewise).
+    seen = np.zeros(n, bool)
+    sharp = inside.copy()
     sharp_weights = np.zeros((n, 16), np.float32)
     for k, (dx, dy) in enumerate(TAPS):
         xs, ys = x0 + dx, y0 + dy
         qn = np.clip(ys, 0, h - 1) * w + np.clip(xs, 0, w - 1)
         same, obj_prev = like(qn)
+        seen |= same & (np.abs(xs - x) <= 1) & (np.abs(ys - y) <= 1)
         keep = same & (xs >= 0) & (xs < w) & (ys >= 0) & (ys < h)
         if moved is not None:
             # Where a moving object passed, history shows it: no trails.
@@ -174,6 +194,8 @@ def previous_pixels(scene, gb, history, motion=None, moved=None, still_scene=Fal
         sharp_weights[:, k] = cr_x[dx + 1] * cr_y[dy + 1]
         if k < 4:
             out.weights[:, k] = np.where(keep, bilinear[(dx, dy)], 0.0)
+    ok = inside & seen
+    sharp &= ok
     total = out.weights.sum(axis=1)
     alone = ok & (total <= 1e-6)
     if moved is not None:       # the nearest pixel must not be a trail either
@@ -184,7 +206,7 @@ def previous_pixels(scene, gb, history, motion=None, moved=None, still_scene=Fal
     out.weights[alone, 0] = 1.0
     total = np.where(alone, 1.0, total)
     out.weights *= np.where(ok & (total > 1e-6), 1.0 / np.maximum(total, 1e-6), 0.0)[:, None]
-    out.weights[sharp] = sharp_weights[sharp]
+    out.weights = np.where(sharp[:, None], sharp_weights, out.weights)
     return out
 
 
@@ -205,46 +227,32 @@ def accumulate(prev, footprint, direct, indirect, albedo, normal, cap):
     part) blended with this frame's values, over at most ``cap`` frames.
     prev: last frame's Accumulation (whole image) or None."""
     n = len(direct)
+    new = np.empty((n, 13), np.float32)
+    new[:, 0:3], new[:, 3:6], new[:, 6:9], new[:, 9:12], new[:, 12] = direct, indirect, albedo, normal, 1.0
     if prev is None or cap <= 1 or footprint is None:
-        count = np.ones(n, np.float32)
-        return Accumulation(direct.copy(), indirect.copy(), albedo.copy(), normal.copy(), count)
+        return Accumulation(new)
     wts = footprint.weights
     taps = [k for k in range(wts.shape[1]) if wts[:, k].any()]
-    inner = [k for k in taps if k < 4]
-
-    def history(a):
-        """The weighted taps, clipped to the range of the inner 2x2 taps that
-        count (Catmull-Rom's negative lobes overshoot at edges)."""
-        out = lo = hi = None
-        for k in taps:
-            v = gather(a, footprint.taps[:, k])
-            if k in inner:
-                counts = (wts[:, k, None] if v.ndim == 2 else wts[:, k]) != 0
-                big = np.where(counts, v, -np.inf)
-                small = np.where(counts, v, np.inf)
-                lo = small if lo is None else np.minimum(lo, small)
-                hi = big if hi is None else np.maximum(hi, big)
-            v *= wts[:, k, None] if v.ndim == 2 else wts[:, k]
-            out = v if out is None else out + v
-        if out is None:
-            return np.zeros_like(a[:n])
-        if lo is not None and len(taps) > 1:
-            np.clip(out, np.minimum(lo, hi), np.maximum(hi, lo), out=out)
-            out[~np.isfinite(out)] = 0
-        return out
-
-    count = np.minimum(history(prev.count), cap - 1).astype(np.float32) + 1
-    a = (1.0 / count)[:, None]
-
-    def blend(old, new):
-        out = history(old)
-        out -= new
-        out *= 1.0 - a          # = old + (new - old) / count
-        out += new
-        return out
-
-    return Accumulation(blend(prev.direct, direct), blend(prev.indirect, indirect),
-                        blend(prev.albedo, albedo), blend(prev.normal, normal), count)
+    # The weighted taps, clipped to the range of the inner 2x2 taps
+    # (Catmull-Rom's negative lobes overshoot at edges).
+    hist = lo = hi = None
+    for k in taps:
+        v = gather(prev.data, footprint.taps[:, k])
+        if k < 4:   # (a read from matching inner taps lies in their range anyway)
+            lo = v.copy() if lo is None else np.minimum(lo, v, out=lo)
+            hi = v.copy() if hi is None else np.maximum(hi, v, out=hi)
+        v *= wts[:, k, None]
+        hist = v if hist is None else np.add(hist, v, out=hist)
+    if hist is None:
+        return Accumulation(new)
+    if len(taps) > 4:
+        np.clip(hist, lo, hi, out=hist)
+    count = np.minimum(hist[:, 12], cap - 1) + 1
+    hist -= new
+    hist *= (1.0 - 1.0 / count)[:, None]        # = old + (new - old) / count
+    hist += new
+    hist[:, 12] = count
+    return Accumulation(hist)
 
 
 def restart(acc, cap=0):
