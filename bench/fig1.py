@@ -11,7 +11,8 @@ and the equal-time gain (MSE_PT x t_PT) / (MSE_ReSTIR x t_ReSTIR), with the
 time ratio taken from path-traced frames timed between the ReSTIR frames. Two-bounce light transport
 (max_bounces 2) as in the paper's figure. Primary rays go through pixel
 centres (filter width 0) for every method and the reference, so the error is
-light transport noise, not anti-aliasing. Times and MSEs are medians over
+light transport noise, not anti-aliasing. Each ReSTIR frame is its own image
+(no accumulation of frames), as in the paper. Times and MSEs are medians over
 --repeats runs with different seeds, all taken in this one run. Writes
 bench/out/fig1.md and bench/out/fig1.png (PT | biased | unbiased | reference).
 """
@@ -85,7 +86,10 @@ def main():
         times, pt_t, errs, directs = [], [], [], []
         for r in range(args.repeats):
             restir = ReSTIRGI()
-            settings = ReSTIRSettings(mode=mode, max_bounces=args.bounces, seed=100 + r)
+            # accumulate=1: the paper's estimator, each frame on its own (the
+            # engine's running mean over frames is measured by equal_time.py).
+            settings = ReSTIRSettings(mode=mode, max_bounces=args.bounces, seed=100 + r, accumulate=1,
+                                      light_samples=16)
             for f in range(args.frames):
                 t0 = time.perf_counter()
                 out = restir.render_frame(ctx, settings, f)
