@@ -10,13 +10,14 @@ Each pixel finds where it was last frame: its visible point is carried to
 the previous frame (the object's motion, then the previous camera), and the
 motion of that point on the film is applied to the pixel's centre (not to its
 jittered sample; a still view maps every pixel onto itself). The history is
-read there bilinearly, and kept if the pixel's surface was seen in the 3x3
-pixels around that place last frame (a pixel on an edge sees both sides over
-its filter footprint, so its own last sample need not match this one);
-disocclusions start over.
-The mean is over at most ``cap`` frames (an exponential average once full),
-so light that changes shows after about ``cap`` frames; a change of lighting
-restarts every pixel.
+read there through a 4x4 Catmull-Rom window (bilinearly where some pixel of
+the window saw another surface), and kept if the pixel's surface was seen in
+the 3x3 pixels around that place last frame (a pixel on an edge sees both
+sides over its filter footprint, so its own last sample need not match this
+one); disocclusions start over. The mean is over at most ``cap`` frames (an
+exponential average once full), so light that changes shows after about
+``cap`` frames; the caller restarts every pixel when lights, materials or
+the world change, and keeps a few frames where objects moved.
 """
 
 from dataclasses import dataclass
