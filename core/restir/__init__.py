@@ -27,8 +27,7 @@ from .initial import COSINE, initial_samples
 from .shading import carried_visibility, shade_indirect
 from .shift import target_at
 from .spatial import reuse_weights, spatial_resample
-from .temporal import (FrameHistory, carry_with_objects, motion_to_previous, moved_objects, reproject,
-                       temporal_resample)
+from .temporal import FrameHistory, ObjectMotion, carry_with_objects, reproject, temporal_resample
 from .validation import validate
 
 BIASED = "RESTIR_BIASED"
@@ -134,6 +133,7 @@ class ReSTIRGI:
         history = self.history
         if history is not None:
             carry_with_objects(scene, history)     # samples and owners ride with moved objects
+        motion = ObjectMotion.between(scene, history)     # None if nothing moved
 
         # Last frame's traced visibility is reused only if no triangle moved.
         geometry_key = scene.geometry_key()
@@ -175,13 +175,11 @@ class ReSTIRGI:
         def new_samples(a, b):
             t = time.perf_counter()
             part = gb.part(a, b)
-            prev = reproject(scene, part, history) if settings.temporal else np.full(b - a, -1, np.int64)
+            prev = reproject(scene, part, history, motion) if settings.temporal else np.full(b - a, -1, np.int64)
             hold = reprojected_hold(prev, history.noise_hold) if history is not None else None
             acc_prev = None
             if accumulating and history is not None and history.accumulation is not None:
-                motion = motion_to_previous(scene, history, part.object_id[part.index])
-                acc_prev = previous_pixels(scene, part, history, motion, moved_objects(scene, history),
-                                           still_scene=not moved)
+                acc_prev = previous_pixels(scene, part, history, motion, still_scene=not moved)
             counts = light_sample_counts(part.index, prev, hold, settings.light_samples)
             # Initial samples (several per pixel are streamed into one reservoir).
             initial, direct, glossy = initial_samples(ctx, part, settings.seed, frame, 0,

@@ -106,11 +106,11 @@ class Footprint:
         return cls(np.zeros((n, 16), np.int64), np.zeros((n, 16), np.float32))
 
 
-def previous_pixels(scene, gb, history, motion=None, moved=None, still_scene=False):
+def previous_pixels(scene, gb, history, motion=None, still_scene=False):
     """Footprint of last frame's history of every pixel of the part ``gb``.
 
-    motion: 4x4 current -> previous matrices of gb's valid rows, or None;
-    moved: temporal.moved_objects(), or None; still_scene: no triangle moved
+    motion: temporal.ObjectMotion.between(scene, history) (None: nothing
+    moved); still_scene: no triangle moved
     (with an unchanged camera, every pixel is then where it was).
 
     A moving view reads the history bilinearly at the reprojected centre:
@@ -133,7 +133,8 @@ def previous_pixels(scene, gb, history, motion=None, moved=None, still_scene=Fal
     # ray through their centre (the world moves with the view direction).
     o, d, tmax = generate_rays(scene.camera, w, h, centre[miss])
     far = o + d * np.minimum(tmax, 1e4)[:, None]
-    cur_v, prev_v, depth_v = film_motion(scene, history, gb.surf.p, motion)
+    cur_v, prev_v, depth_v = film_motion(scene, history, gb.surf.p,
+                                         None if motion is None else motion.of(gb.object_id[idx]))
     cur_m, prev_m, _ = film_motion(scene, history, far)
     target = np.empty((n, 2), np.float32)
     target[idx] = centre[idx] + (prev_v - cur_v)
@@ -145,8 +146,9 @@ def previous_pixels(scene, gb, history, motion=None, moved=None, still_scene=Fal
     depth[idx] = depth_v
     inside[idx] &= depth_v > 0
     obj = gb.object_id
-    if moved is not None:
-        now, before = moved
+    moved = motion is not None
+    if moved:
+        now, before = motion.moved_now, motion.moved_before
         moving_now = np.where(obj >= 0, now[np.maximum(obj, 0)], False)
 
     tolerance = DEPTH_REL_MAX * np.maximum(depth, 1e-6)
@@ -186,7 +188,7 @@ def previous_pixels(scene, gb, history, motion=None, moved=None, still_scene=Fal
         same, obj_prev = like(qn)
         seen |= same & (np.abs(xs - x) <= 1) & (np.abs(ys - y) <= 1)
         keep = same & (xs >= 0) & (xs < w) & (ys >= 0) & (ys < h)
-        if moved is not None:
+        if moved:
             # Where a moving object passed, history shows it: no trails.
             moving_prev = np.where(obj_prev >= 0, before[np.maximum(obj_prev, 0)], False)
             keep &= ~((obj_prev != obj) & (moving_now | moving_prev))
@@ -199,7 +201,7 @@ def previous_pixels(scene, gb, history, motion=None, moved=None, still_scene=Fal
     sharp &= ok
     total = out.weights.sum(axis=1)
     alone = ok & (total <= 1e-6)
-    if moved is not None:       # the nearest pixel must not be a trail either
+    if moved:                   # the nearest pixel must not be a trail either
         obj_prev = history.object_id[nearest]
         moving_prev = np.where(obj_prev >= 0, before[np.maximum(obj_prev, 0)], False)
         alone &= ~((obj_prev != obj) & (moving_now | moving_prev))

@@ -63,29 +63,30 @@ def _object_motions(scene, history):
     return moved
 
 
-def moved_objects(scene, history):
-    """Which objects moved since last frame: (flags over current object ids,
-    flags over last frame's object ids), or None if nothing moved."""
-    moved = _object_motions(scene, history)
-    if not moved:
-        return None
-    now = np.zeros(len(scene.object_keys), bool)
-    before = np.zeros(len(history.object_keys), bool)
-    for i, (j, _m) in moved.items():
-        now[i], before[j] = True, True
-    return now, before
+@dataclass
+class ObjectMotion:
+    """How the objects moved since last frame, found once per frame."""
+    to_previous: np.ndarray     # (O, 4, 4) per current object id: current -> last frame
+                                # (identity where an object is new or did not move)
+    moved_now: np.ndarray       # (O,) bool over current object ids
+    moved_before: np.ndarray    # (O_prev,) bool over last frame's object ids
 
+    @classmethod
+    def between(cls, scene, history):
+        """The motion from last frame to this one, or None if nothing moved."""
+        moved = _object_motions(scene, history) if history is not None else {}
+        if not moved:
+            return None
+        out = cls(np.tile(np.eye(4, dtype=np.float64), (len(scene.object_keys), 1, 1)),
+                  np.zeros(len(scene.object_keys), bool), np.zeros(len(history.object_keys), bool))
+        for i, (j, to_prev) in moved.items():
+            out.to_previous[i] = to_prev
+            out.moved_now[i], out.moved_before[j] = True, True
+        return out
 
-def motion_to_previous(scene, history, object_id):
-    """Per-pixel 4x4 matrices taking current positions to last frame's, from the
-    objects' transforms (identity where an object is new or did not move)."""
-    moved = _object_motions(scene, history)
-    if not moved:
-        return None
-    motion = np.tile(np.eye(4, dtype=np.float64), (len(scene.object_keys), 1, 1))
-    for i, (_j, to_prev) in moved.items():
-        motion[i] = to_prev
-    return motion[np.maximum(object_id, 0)]
+    def of(self, object_id):
+        """Per-row 4x4 matrices for rows on the given (current) object ids."""
+        return self.to_previous[np.maximum(object_id, 0)]
 
 
 def _move_rows(m, rows, points=(), directions=(), normals=()):
@@ -126,8 +127,9 @@ def carry_with_objects(scene, history):
     return count
 
 
-def reproject(scene, gb, history):
-    """Previous-frame pixel of every pixel (-1 where history is rejected)."""
+def reproject(scene, gb, history, motion=False):
+    """Previous-frame pixel of every pixel (-1 where history is rejected).
+    motion: ObjectMotion.between(scene, history) if the caller has it."""
     n = len(gb.valid)
     prev_pix = np.full(n, -1, np.int64)
     if history is None or (history.width, history.height) != (gb.width, gb.height):
@@ -135,8 +137,10 @@ def reproject(scene, gb, history):
     idx = gb.index
     p = gb.surf.p.astype(np.float64)
     nrm = gb.surf.ns.astype(np.float64)
-    motion = motion_to_previous(scene, history, gb.object_id[idx])
+    if motion is False:
+        motion = ObjectMotion.between(scene, history)
     if motion is not None:
+        motion = motion.of(gb.object_id[idx])
         p = np.einsum("nij,nj->ni", motion[:, :3, :3], p) + motion[:, :3, 3]
         nrm = np.einsum("nij,nj->ni", motion[:, :3, :3], nrm)
         nrm /= np.maximum(np.linalg.norm(nrm, axis=1, keepdims=True), 1e-30)
