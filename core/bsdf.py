@@ -41,24 +41,41 @@ def bsdf_params(materials, material_ids):
 
     Computed once per material, then gathered per hit (core/rows.py): the same
     arithmetic, on a handful of rows instead of every hit."""
-    base = materials.base_color
-    metallic = np.clip(materials.metallic, 0, 1)[:, None]
-    rough = np.clip(materials.roughness, 0, 1)
-    ior = materials.ior
-    level = np.maximum(materials.specular, 0)
-    f0_dielectric = np.minimum(((ior - 1) / (ior + 1)) ** 2 * 2.0 * level, 1.0)[:, None]
+    return material_lobes(materials).subset(np.asarray(material_ids))
+
+
+def principled_lobes(base, metallic, roughness, ior, level):
+    """(diffuse, f0, roughness) of the Principled subset, for any broadcastable
+    inputs: the metallic share reflects base colour, the dielectric share a
+    Fresnel f0 of its IOR (scaled by 2 x Specular IOR Level) over a Lambert
+    base weighted by (1 - f0)."""
+    metallic = np.clip(metallic, 0, 1)[..., None]
+    f0_dielectric = np.minimum(((ior - 1) / (ior + 1)) ** 2 * 2.0 * np.maximum(level, 0), 1.0)[..., None]
     f0 = (1 - metallic) * f0_dielectric + metallic * base
     diffuse = (1 - metallic) * (1 - f0_dielectric) * base
+    return diffuse, f0, np.clip(roughness, 0, 1)
+
+
+def material_lobes(materials):
+    """BSDFParams with one row per material of the table."""
+    diffuse, f0, rough = principled_lobes(materials.base_color, materials.metallic,
+                                          materials.roughness, materials.ior, materials.specular)
+    return lobe_params(diffuse, f0, rough)
+
+
+def lobe_params(diffuse, f0, roughness):
+    """BSDFParams from lobe weights: Lambert albedo (N, 3), GGX f0 (N, 3), roughness (N,).
+
+    The specular lobe is picked in proportion to its share of the luminance,
+    kept within [0.1, 0.9] where both lobes reflect."""
     ws = luminance(f0)
     wd = luminance(diffuse)
     total = ws + wd
     p_spec = np.where(total > 0, ws / np.where(total > 0, total, 1), 0.0)
     p_spec = np.where((ws > 0) & (wd > 0), np.clip(p_spec, 0.1, 0.9), p_spec)
-    alpha = np.maximum(rough * rough, ALPHA_MIN)
-    return BSDFParams(gather(diffuse.astype(np.float32), material_ids),
-                      gather(f0.astype(np.float32), material_ids),
-                      np.take(alpha.astype(np.float32), material_ids),
-                      np.take(p_spec.astype(np.float32), material_ids))
+    alpha = np.maximum(np.asarray(roughness) ** 2, ALPHA_MIN)
+    return BSDFParams(np.ascontiguousarray(diffuse, np.float32), np.ascontiguousarray(f0, np.float32),
+                      np.ascontiguousarray(alpha, np.float32), np.ascontiguousarray(p_spec, np.float32))
 
 
 # --- GGX ------------------------------------------------------------------

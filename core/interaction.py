@@ -13,9 +13,9 @@ class SurfaceHits:
     """Struct-of-arrays surface interaction for a batch of hits (all valid).
 
     Normals are flipped to face the incoming direction (``wo`` side), as Cycles
-    does for reflection-only materials: every surface is two-sided. No texture
-    coordinates: material inputs use their socket values (scene.uvs keeps the
-    exported UVs for when textures are read).
+    does for reflection-only materials: every surface is two-sided. Texture
+    coordinates and other corner data are interpolated from ``bary`` when a
+    material's nodes ask for them (core/shader/geometry.py).
     """
     p: np.ndarray           # (N, 3) position
     ng: np.ndarray          # (N, 3) unit geometric normal, facing wo
@@ -24,6 +24,7 @@ class SurfaceHits:
     prim: np.ndarray        # (N,) int32 triangle index
     material: np.ndarray    # (N,) int32 material id
     front: np.ndarray       # (N,) bool, True where the ray hit the front face
+    bary: np.ndarray = None # (N, 2) float32 barycentrics (b1, b2) of the hit in its triangle
 
     def __len__(self):
         return len(self.prim)
@@ -32,7 +33,8 @@ class SurfaceHits:
         index = np.asarray(mask_or_index)
         if index.dtype == bool:
             index = np.nonzero(index)[0]
-        return SurfaceHits(*(gather(getattr(self, f), index) for f in self.__dataclass_fields__))
+        return SurfaceHits(*(None if getattr(self, f) is None else gather(getattr(self, f), index)
+                             for f in self.__dataclass_fields__))
 
 
 def surface_hits(scene, origins, directions, hits, mask=None):
@@ -59,4 +61,5 @@ def surface_hits(scene, origins, directions, hits, mask=None):
     ng = scale(ng, np.where(front, np.float32(1), np.float32(-1)))
     ns = scale(ns, np.where(dot(ns, ng) >= 0, np.float32(1), np.float32(-1)))
     return SurfaceHits(p=p, ng=ng, ns=ns, wo=wo, prim=prim.astype(np.int32),
-                       material=np.take(scene.material_ids, prim), front=front), idx
+                       material=np.take(scene.material_ids, prim), front=front,
+                       bary=np.stack([b1, b2], axis=1).astype(np.float32)), idx

@@ -158,6 +158,15 @@ class Scene:
     # (geometry, lighting) change counters, from a builder that knows what it
     # changed (the viewport): the keys below are then these instead of digests.
     versions: tuple = None
+    # Shader node graphs (core/shader/graph.py), one per material id or None
+    # where the Materials row says all; images they read by key
+    # (core/texture.py); corner data they read beyond scene.uvs, by the
+    # graphs' ``needs`` keys (core/shader/geometry.py); per-object values of
+    # the Object Info node ("Color" (O, 3), "Random" (O,), "Alpha" (O,)).
+    shaders: list = field(default_factory=list)
+    images: dict = field(default_factory=dict)
+    corner_data: dict = field(default_factory=dict)
+    object_info: dict = field(default_factory=dict)
 
     @property
     def triangle_count(self):
@@ -190,6 +199,10 @@ class Scene:
         arrays = [self.normals, self.material_ids, self.world_color]
         arrays += [getattr(self.materials, f.name) for f in fields(Materials) if f.name != "names"]
         arrays += [getattr(self.lights, f.name) for f in fields(Lights) if f.name != "names"]
+        if self.shaders:
+            # Graphs are small plain data: their text names every constant.
+            shapes = sorted((k, getattr(v, "shape", None)) for k, v in self.images.items())
+            arrays.append(np.frombuffer(repr((self.shaders, shapes)).encode(), np.uint8))
         return _digest(arrays, geometry_key or self.geometry_key())
 
 

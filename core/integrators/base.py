@@ -5,7 +5,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .. import bsdf, samplers
+from .. import bsdf, materials, samplers
 from ..accel import Accel, offset_origins
 from ..lights import INF_DIST, LightSet
 from ..parallel import SERIAL, Workers
@@ -45,10 +45,12 @@ class ShadingFrame:
     wo_local: np.ndarray
 
     @staticmethod
-    def at(scene, surf):
+    def at(scene, surf, camera_ray=False):
+        """Materials evaluated at the hits (core/materials.py; normal maps
+        and bump replace ``surf.ns``) and the local frame of their normals."""
+        params = materials.surface_params(scene, surf, camera_ray)
         t, b = orthonormal_basis(surf.ns)
-        return ShadingFrame(bsdf.bsdf_params(scene.materials, surf.material), t, b,
-                            to_local(surf.wo, t, b, surf.ns))
+        return ShadingFrame(params, t, b, to_local(surf.wo, t, b, surf.ns))
 
     def subset(self, index):
         return ShadingFrame(self.params.subset(index), gather(self.t, index), gather(self.b, index),

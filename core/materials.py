@@ -1,0 +1,119 @@
+"""Material id + shader graph -> BSDF parameters at hits.
+
+Each material is either a row of the constant table (``scene.materials``) or
+a shader graph (``scene.shaders[id]``, core/shader/). A graph whose nodes do
+not depend on the hit (no textures, coordinates or attributes) is run once
+and becomes a row of the lobe table like a constant material; the others run
+per batch, on the hits that carry them, grouped by material. Normal maps and
+bump write the hits' shading normal.
+
+The graphs are compiled and the lobe table built once per scene object
+(``shading(scene)``), not per batch.
+"""
+
+import numpy as np
+
+from . import bsdf
+from .rows import gather, scatter
+from .shader import CompiledShader, SurfaceGeometry, WorldGeometry
+
+DEFAULT_ROUGHNESS = 0.5
+
+
+class SceneShading:
+    """Compiled shaders and the per-material lobe table of one scene."""
+
+    def __init__(self, scene, warn=None):
+        self.warnings = []
+        warn = warn or self.warnings.append
+        m = len(scene.materials)
+        shaders = list(scene.shaders or [])
+        self.compiled = [None] * m
+        table = bsdf.material_lobes(scene.materials)
+        one = WorldGeometry(np.array([[0.0, 0.0, 1.0]], np.float32))
+        self.emission = np.array(scene.materials.emission, np.float32, copy=True)
+        for i, graph in enumerate(shaders[:m]):
+            if graph is None:
+                continue
+            shader = CompiledShader(graph, scene.images, warn)
+            if shader.uniform:
+                closure = shader.closure(one)
+                row = params_of(closure, 1)
+                for name in ("diffuse", "f0", "alpha", "p_spec"):
+                    getattr(table, name)[i] = getattr(row, name)[0]
+                self.emission[i] = closure.get("emission", 1)[0]
+            else:
+                self.compiled[i] = shader
+        self.table = table
+        self.varying = [i for i, s in enumerate(self.compiled) if s is not None]
+
+
+def params_of(closure, n):
+    """BSDFParams of a closure spread over n hits."""
+    return bsdf.lobe_params(closure.get("diffuse", n), closure.get("specular", n),
+                            closure.averaged("spec_rough", n, DEFAULT_ROUGHNESS))
+
+
+def shading(scene):
+    """The scene's SceneShading, built on first use."""
+    s = getattr(scene, "_shading", None)
+    if s is None or s.source[0] is not scene.shaders or s.source[1] is not scene.materials:
+        s = SceneShading(scene)
+        s.source = (scene.shaders, scene.materials)
+        scene._shading = s
+        for text in s.warnings:
+            if text not in scene.warnings:
+                scene.warnings.append(text)
+    return s
+
+
+def surface_params(scene, surf, camera_ray=False):
+    """BSDFParams at the hits ``surf``; where a graph bends the normal,
+    ``surf.ns`` is replaced by the bent one (kept on the side of ng)."""
+    sh = shading(scene)
+    ids = surf.material
+    params = sh.table.subset(ids)
+    if not sh.varying or len(ids) == 0:
+        return params
+    order = np.argsort(ids, kind="stable")
+    sorted_ids = ids[order]
+    for m in sh.varying:
+        a, b = np.searchsorted(sorted_ids, [m, m + 1])
+        if a == b:
+            continue
+        rows = order[a:b]
+        hits = surf.subset(rows)
+        geom = SurfaceGeometry(scene, hits, camera_ray)
+        closure = sh.compiled[m].closure(geom)
+        p = params_of(closure, len(rows))
+        scatter(params.diffuse, rows, p.diffuse)
+        scatter(params.f0, rows, p.f0)
+        params.alpha[rows] = p.alpha
+        params.p_spec[rows] = p.p_spec
+        if closure.normal_sum is not None:
+            ns = closure.normal(len(rows), hits.ns)
+            ng = hits.ng
+            facing = (ns * ng).sum(axis=1) > 0
+            scatter(surf.ns, rows, np.where(facing[:, None], ns, hits.ns))
+    return params
+
+
+def triangle_emission(scene):
+    """(T, 3) emitted radiance per triangle: the material's, and for graphs
+    that vary over the surface, the graph at the triangle's centre."""
+    sh = shading(scene)
+    em = gather(sh.emission, scene.material_ids) if scene.triangle_count else np.zeros((0, 3), np.float32)
+    for m in sh.varying:
+        tris = np.nonzero(scene.material_ids == m)[0]
+        if len(tris) == 0:
+            continue
+        from .interaction import SurfaceHits   # noqa: PLC0415
+        corners = scene.vertices[scene.triangles[tris]]
+        centre = corners.mean(axis=1).astype(np.float32)
+        n = scene.face_normals[tris] if scene.face_normals is not None else np.zeros_like(centre)
+        hits = SurfaceHits(p=centre, ng=n, ns=n.copy(), wo=n, prim=tris.astype(np.int32),
+                           material=np.full(len(tris), m, np.int32), front=np.ones(len(tris), bool),
+                           bary=np.full((len(tris), 2), 1 / 3, np.float32))
+        closure = sh.compiled[m].closure(SurfaceGeometry(scene, hits))
+        scatter(em, tris, closure.get("emission", len(tris)))
+    return em

@@ -1,0 +1,220 @@
+"""Input and vector nodes: Texture Coordinate, UV Map, Geometry, Object Info,
+Light Path, Color Attribute, Attribute, Fresnel, Layer Weight, Mapping,
+Normal Map and Bump.
+
+Conventions from Cycles (``svm/tex_coord.h``, ``svm/fresnel.h``,
+``svm/mapping_util.h``, ``svm/bump.h``). Bump has no ray differentials here:
+its height is sampled at BUMP_OFFSET times the scene's extent along two
+tangents of the surface, which gives the same normal wherever the height is
+smooth at that scale.
+"""
+
+import numpy as np
+
+from .evaluate import f32, node, varying
+
+BUMP_OFFSET = 1e-4      # of the scene extent
+
+
+def _norm(v):
+    v = f32(v)
+    n = np.sqrt((v * v).sum(axis=-1, keepdims=True))
+    return (v / np.where(n > 0, n, 1)).astype(np.float32)
+
+
+def _dot(a, b):
+    return (a * b).sum(axis=-1)
+
+
+def _cross(a, b):
+    a, b = np.broadcast_arrays(a, b)
+    return np.cross(a, b).astype(np.float32)
+
+
+def fresnel_dielectric_cos(cosi, eta):
+    c = np.abs(cosi)
+    g = eta * eta - 1 + c * c
+    ok = g > 0
+    g = np.sqrt(np.where(ok, g, 0))
+    a = (g - c) / np.where(g + c != 0, g + c, 1)
+    den = c * (g - c) + 1
+    b = (c * (g + c) - 1) / np.where(den != 0, den, 1)
+    return np.where(ok, 0.5 * a * a * (1 + b * b), 1.0).astype(np.float32)
+
+
+def _surface_normal(inp, geom, name="Normal"):
+    return _norm(inp.vector(name)) if inp.linked(name) else geom.normal
+
+
+@varying
+@node("TEX_COORD")
+def texture_coordinate(inp, geom, n, sh):
+    out = {"Generated": geom.generated, "Normal": geom.object_vector(geom.normal), "UV": geom.uv(""),
+           "Object": geom.object_coords, "Camera": np.zeros((geom.n, 3), np.float32),
+           "Window": np.zeros((geom.n, 3), np.float32)}
+    inv = n.props.get("object_matrix_inverse")
+    if inv is not None:
+        m = np.asarray(inv, np.float32).reshape(4, 4)
+        out["Object"] = (geom.position @ m[:3, :3].T + m[:3, 3]).astype(np.float32)
+    i, nrm = geom.incoming, geom.normal
+    out["Reflection"] = (2 * _dot(i, nrm)[:, None] * nrm - i).astype(np.float32)
+    return out
+
+
+@varying
+@node("UVMAP")
+def uv_map(inp, geom, n, sh):
+    return {"UV": geom.uv(n.props.get("uv_map", ""))}
+
+
+@varying
+@node("NEW_GEOMETRY")
+def geometry(inp, geom, n, sh):
+    t, _ = geom.tangent("")
+    return {"Position": geom.position, "Normal": geom.normal, "Tangent": t,
+            "True Normal": geom.true_normal, "Incoming": geom.incoming,
+            "Parametric": geom.uv("") * 0, "Backfacing": geom.backfacing,
+            "Pointiness": np.full(geom.n, 0.5, np.float32), "Random Per Island": np.zeros(geom.n, np.float32)}
+
+
+@varying
+@node("OBJECT_INFO")
+def object_info(inp, geom, n, sh):
+    return {"Location": geom.object_info("Location"), "Color": geom.object_info("Color"),
+            "Alpha": geom.object_info("Alpha"), "Random": geom.object_info("Random"),
+            "Object Index": np.zeros(geom.n, np.float32), "Material Index": np.zeros(geom.n, np.float32)}
+
+
+@varying
+@node("LIGHT_PATH")
+def light_path(inp, geom, n, sh):
+    cam = np.float32(1.0 if geom.camera_ray else 0.0)
+    zero = np.float32(0)
+    return {"Is Camera Ray": cam, "Is Shadow Ray": zero, "Is Diffuse Ray": 1 - cam, "Is Glossy Ray": zero,
+            "Is Singular Ray": zero, "Is Reflection Ray": 1 - cam, "Is Transmission Ray": zero,
+            "Is Volume Scatter Ray": zero, "Ray Length": zero, "Ray Depth": 1 - cam,
+            "Diffuse Depth": 1 - cam, "Glossy Depth": zero, "Transparent Depth": zero,
+            "Transmission Depth": zero, "Portal Depth": zero}
+
+
+@varying
+@node("VERTEX_COLOR")
+def color_attribute(inp, geom, n, sh):
+    c, a = geom.attribute(n.props.get("layer_name", ""))
+    return {"Color": c, "Alpha": a}
+
+
+@varying
+@node("ATTRIBUTE")
+def attribute(inp, geom, n, sh):
+    c, a = geom.attribute(n.props.get("attribute_name", ""))
+    return {"Color": c, "Vector": c, "Fac": c.mean(axis=-1).astype(np.float32), "Alpha": a}
+
+
+@varying
+@node("FRESNEL")
+def fresnel(inp, geom, n, sh):
+    eta = np.maximum(inp.float("IOR", 1.5), 1e-5)
+    eta = np.where(geom.backfacing > 0, 1 / eta, eta)
+    cos = _dot(geom.incoming, _surface_normal(inp, geom))
+    return {"Fac": fresnel_dielectric_cos(cos, eta)}
+
+
+@varying
+@node("LAYER_WEIGHT")
+def layer_weight(inp, geom, n, sh):
+    blend = inp.float("Blend", 0.5)
+    cos = _dot(geom.incoming, _surface_normal(inp, geom))
+    eta = np.maximum(1 - blend, 1e-5)
+    eta = np.where(geom.backfacing > 0, eta, 1 / eta)
+    fres = fresnel_dielectric_cos(cos, eta)
+    b = np.clip(blend, 0, 1 - 1e-5)
+    b = np.where(b < 0.5, 2 * b, 0.5 / (1 - b))
+    facing = np.where(blend != 0.5, np.power(np.abs(cos), b), np.abs(cos))
+    return {"Fresnel": fres, "Facing": f32(1 - facing)}
+
+
+def euler_matrix(rot):
+    """Blender's XYZ Euler rotation as (..., 3, 3) matrices: X first, then Y, then Z."""
+    rot = f32(rot)
+    cx, cy, cz = np.cos(rot[..., 0]), np.cos(rot[..., 1]), np.cos(rot[..., 2])
+    sx, sy, sz = np.sin(rot[..., 0]), np.sin(rot[..., 1]), np.sin(rot[..., 2])
+    rows = [[cy * cz, sy * sx * cz - cx * sz, sy * cx * cz + sx * sz],
+            [cy * sz, sy * sx * sz + cx * cz, sy * cx * sz - sx * cz],
+            [-sy, cy * sx, cy * cx]]
+    return np.stack([np.stack(np.broadcast_arrays(*r), axis=-1) for r in rows], axis=-2).astype(np.float32)
+
+
+def _rotate(m, v):
+    return np.einsum("...ij,...j->...i", m, v).astype(np.float32)
+
+
+def _safe_div(a, b):
+    return np.where(b != 0, a / np.where(b != 0, b, 1), 0).astype(np.float32)
+
+
+@node("MAPPING")
+def mapping(inp, geom, n, sh):
+    v = inp.vector("Vector")
+    loc, rot, scale = inp.vector("Location"), inp.vector("Rotation"), inp.vector("Scale", (1, 1, 1))
+    m = euler_matrix(rot)
+    kind = inp.prop("vector_type", "POINT")
+    if kind == "POINT":
+        out = _rotate(m, v * scale) + loc
+    elif kind == "TEXTURE":
+        out = _safe_div(_rotate(np.swapaxes(m, -1, -2), v - loc), scale)
+    elif kind == "VECTOR":
+        out = _rotate(m, v * scale)
+    else:   # NORMAL
+        out = _norm(_rotate(m, _safe_div(v, scale)))
+    return {"Vector": f32(out)}
+
+
+@varying
+@node("NORMAL_MAP")
+def normal_map(inp, geom, n, sh):
+    color = inp.color("Color", (0.5, 0.5, 1.0))
+    strength = np.maximum(inp.float("Strength", 1.0), 0)
+    nrm = geom.normal
+    c = 2 * color - 1
+    space = inp.prop("space", "TANGENT")
+    if space == "TANGENT":
+        t, sign = geom.tangent(inp.prop("uv_map", ""))
+        c = np.broadcast_to(c, (geom.n, 3))
+        b = _cross(nrm, t) * sign[:, None]
+        out = c[:, 0:1] * t + c[:, 1:2] * b + c[:, 2:3] * nrm
+    else:
+        if space.startswith("BLENDER_"):
+            c = np.stack([c[..., 0], -c[..., 2], c[..., 1]], axis=-1)
+        out = geom.object_vector_to_world(c) if "OBJECT" in space else c
+        out = np.broadcast_to(out, (geom.n, 3))
+    out = _norm(out)
+    # Keep the mapped normal on the side the shading normal faces.
+    out = np.where((_dot(out, geom.true_normal) < 0)[:, None], nrm, out) if space == "TANGENT" else out
+    s = f32(strength)
+    s = s[:, None] if s.ndim else s
+    return {"Normal": _norm(nrm + (out - nrm) * s)}
+
+
+@varying
+@node("BUMP")
+def bump(inp, geom, n, sh):
+    nrm = _surface_normal(inp, geom)
+    strength = np.clip(inp.float("Strength", 1.0), 0, 1)
+    dist = inp.float("Distance", 1.0) * (-1 if inp.prop("invert", False) else 1)
+    if not inp.linked("Height") or geom.is_world:
+        return {"Normal": nrm}
+    delta = np.float32(BUMP_OFFSET * geom.scene.extent())
+    # Two surface tangents from the shading normal.
+    t = _norm(_cross(nrm, np.where(np.abs(nrm[:, 2:3]) < 0.9, [[0, 0, 1]], [[1, 0, 0]]).astype(np.float32)))
+    b = _cross(nrm, t)
+    h0 = inp.float("Height")
+    hx = inp.at("Height", geom.offset(t * delta), "float")
+    hy = inp.at("Height", geom.offset(b * delta), "float")
+    dhx, dhy = (hx - h0) / delta, (hy - h0) / delta
+    # Surface gradient: Rx = dPdy x N = b x n = t, Ry = N x dPdx = n x t = b (unit steps).
+    surfgrad = t * f32(dhx)[..., None] + b * f32(dhy)[..., None]
+    out = _norm(nrm - f32(dist)[..., None] * surfgrad if f32(dist).ndim else nrm - dist * surfgrad)
+    s = f32(strength)
+    s = s[:, None] if s.ndim else s
+    return {"Normal": _norm(s * out + (1 - s) * nrm)}

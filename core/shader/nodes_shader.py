@@ -1,0 +1,176 @@
+"""Shader nodes: BSDFs, emission and the nodes that combine them into a Closure.
+
+The Principled BSDF follows the layering of Cycles' Principled v2
+(``svm/closure.h``), folded into this engine's lobes (core/shader/closure.py):
+
+- Alpha scales every lobe by alpha and adds a transparent lobe of 1 - alpha.
+- Coat: a GGX reflection of f0 from the Coat IOR on top; what lies below is
+  tinted by mix(1, Coat Tint, Coat Weight) and loses the coat's reflectance.
+- Metallic: base colour as f0 (Schlick; Cycles' F82 edge tint from Specular
+  Tint is not modelled, its effect is at grazing angles only).
+- Transmission: the dielectric share that is not diffuse refracts (tinted by
+  the base colour) with the IOR's Fresnel reflection on top.
+- Dielectric specular: f0 = ((IOR - 1) / (IOR + 1))^2 x 2 x Specular IOR
+  Level x Specular Tint, over a Lambert base of weight (1 - f0).
+- Sheen is not modelled: Cycles' sheen adds a little grazing reflection and
+  takes about as much from the layers below; within a few percent of the
+  surface's brightness for the default Sheen Roughness.
+- Anisotropy is not modelled: the lobe is the isotropic GGX of the same
+  roughness (mean brightness unchanged, highlight shape rounder).
+- Subsurface scattering renders as diffuse reflection of the base colour.
+"""
+
+import numpy as np
+
+from .closure import Closure
+from .evaluate import f32, node
+
+
+def _normal(inp, geom, name="Normal"):
+    """A BSDF's own normal when its Normal socket is linked, else None."""
+    if not inp.linked(name):
+        return None
+    n = np.broadcast_to(inp.vector(name), (geom.n, 3)).astype(np.float32)
+    length = np.sqrt((n * n).sum(axis=1))
+    ok = length > 1e-8
+    return np.where(ok[:, None], n / np.where(ok, length, 1)[:, None], geom.normal)
+
+
+def _c(x):
+    """A scalar or (N,) array ready to multiply an (N, 3) or (3,) colour."""
+    x = f32(x)
+    return x[..., None] if x.ndim else x
+
+
+def _f0_from_ior(ior):
+    ior = np.maximum(f32(ior), 1e-3)
+    return ((ior - 1) / (ior + 1)) ** 2
+
+
+@node("BSDF_PRINCIPLED")
+def principled(inp, geom, n, sh):
+    base = np.clip(inp.color("Base Color", (0.8, 0.8, 0.8)), 0, None)
+    metallic = np.clip(inp.float("Metallic", 0.0), 0, 1)
+    rough = np.clip(inp.float("Roughness", 0.5), 0, 1)
+    ior = np.maximum(inp.float("IOR", 1.5), 1.0)
+    alpha = np.clip(inp.float("Alpha", 1.0), 0, 1)
+    level = np.maximum(inp.float("Specular IOR Level", 0.5), 0)
+    spec_tint = np.clip(inp.color("Specular Tint", (1, 1, 1)), 0, None)
+    trans = np.clip(inp.float("Transmission Weight", 0.0), 0, 1)
+    coat = np.clip(inp.float("Coat Weight", 0.0), 0, 1)
+    strength = inp.float("Emission Strength", 0.0)
+    emission = inp.color("Emission Color", (1, 1, 1)) * _c(strength)
+    normal = _normal(inp, geom)
+
+    dielectric = 1 - metallic
+    f0_d = np.minimum(_f0_from_ior(ior) * 2 * level, 1.0)
+    f0_d = _c(f0_d) * spec_tint
+    specular = _c(metallic) * base + _c(dielectric) * f0_d
+    diffuse = _c(dielectric * (1 - trans)) * (1 - f0_d) * base
+    transmission = _c(dielectric * trans) * base
+    below = 1.0
+    if np.any(coat > 0):
+        f0_coat = _f0_from_ior(np.maximum(inp.float("Coat IOR", 1.5), 1.0))
+        tint = 1 + _c(coat) * (np.clip(inp.color("Coat Tint", (1, 1, 1)), 0, None) - 1)
+        below = tint * _c(1 - coat * f0_coat)
+    lobes = Closure.bsdf(1.0, None, diffuse=diffuse * below, specular=specular * below,
+                         spec_rough=rough, transmission=transmission * below,
+                         trans_rough=rough, ior=ior)
+    if np.any(coat > 0):
+        lobes = lobes + Closure.bsdf(1.0, None, specular=_c(coat * f0_coat) * np.ones(3, np.float32),
+                                     spec_rough=np.clip(inp.float("Coat Roughness", 0.03), 0, 1))
+    if normal is not None:
+        lobes = _with_normal(lobes, normal)
+    out = lobes.scaled(alpha) if np.any(alpha < 1) else lobes
+    if np.any(alpha < 1):
+        out = out + Closure(transparent=np.ones(3, np.float32) * _c(1 - alpha))
+    if np.any(strength != 0):
+        out = out + Closure(emission=emission * _c(alpha))
+    return {"BSDF": out}
+
+
+def _with_normal(c, normal):
+    """The closure with every BSDF lobe using ``normal``."""
+    w = np.float32(0)
+    for name in ("diffuse", "specular", "transmission", "translucent"):
+        if name in c.fields:
+            w = w + np.abs(c.fields[name]).mean(axis=-1)
+    c.normal_sum = normal * f32(w)[..., None] if f32(w).ndim else normal * w
+    c.normal_w = f32(w)
+    return c
+
+
+def _bsdf(inp, geom, **lobes):
+    c = Closure.bsdf(1.0, None, **lobes)
+    normal = _normal(inp, geom)
+    return _with_normal(c, normal) if normal is not None else c
+
+
+@node("BSDF_DIFFUSE")
+def diffuse_bsdf(inp, geom, n, sh):
+    return {"BSDF": _bsdf(inp, geom, diffuse=np.clip(inp.color("Color", (0.8, 0.8, 0.8)), 0, None))}
+
+
+@node("BSDF_GLOSSY", "BSDF_ANISOTROPIC")
+def glossy_bsdf(inp, geom, n, sh):
+    return {"BSDF": _bsdf(inp, geom, specular=np.clip(inp.color("Color", (0.8, 0.8, 0.8)), 0, None),
+                          spec_rough=np.clip(inp.float("Roughness", 0.5), 0, 1))}
+
+
+@node("BSDF_GLASS")
+def glass_bsdf(inp, geom, n, sh):
+    color = np.clip(inp.color("Color", (1, 1, 1)), 0, None)
+    ior = np.maximum(inp.float("IOR", 1.5), 1.0)
+    rough = np.clip(inp.float("Roughness", 0.0), 0, 1)
+    return {"BSDF": _bsdf(inp, geom, specular=color * _c(_f0_from_ior(ior)), spec_rough=rough,
+                          transmission=color, trans_rough=rough, ior=ior)}
+
+
+@node("BSDF_REFRACTION")
+def refraction_bsdf(inp, geom, n, sh):
+    return {"BSDF": _bsdf(inp, geom, transmission=np.clip(inp.color("Color", (1, 1, 1)), 0, None),
+                          trans_rough=np.clip(inp.float("Roughness", 0.0), 0, 1),
+                          ior=np.maximum(inp.float("IOR", 1.45), 1.0))}
+
+
+@node("BSDF_TRANSPARENT")
+def transparent_bsdf(inp, geom, n, sh):
+    return {"BSDF": Closure(transparent=np.clip(inp.color("Color", (1, 1, 1)), 0, None))}
+
+
+@node("BSDF_TRANSLUCENT")
+def translucent_bsdf(inp, geom, n, sh):
+    return {"BSDF": _bsdf(inp, geom, translucent=np.clip(inp.color("Color", (0.8, 0.8, 0.8)), 0, None))}
+
+
+@node("SUBSURFACE_SCATTERING")
+def subsurface(inp, geom, n, sh):
+    return {"BSSRDF": _bsdf(inp, geom, diffuse=np.clip(inp.color("Color", (0.8, 0.8, 0.8)), 0, None))}
+
+
+@node("EMISSION")
+def emission(inp, geom, n, sh):
+    return {"Emission": Closure(emission=inp.color("Color", (1, 1, 1)) * _c(inp.float("Strength", 1.0)))}
+
+
+@node("BACKGROUND")
+def background(inp, geom, n, sh):
+    return {"Background": Closure(emission=inp.color("Color", (0.05, 0.05, 0.05))
+                                  * _c(inp.float("Strength", 1.0)))}
+
+
+@node("HOLDOUT")
+def holdout(inp, geom, n, sh):
+    return {"Holdout": Closure(holdout=np.float32(1))}
+
+
+@node("MIX_SHADER")
+def mix_shader(inp, geom, n, sh):
+    f = np.clip(inp.float("Fac", 0.5), 0, 1)
+    a, b = inp.closure("Shader"), inp.closure("Shader_001")
+    return {"Shader": a.scaled(1 - f) + b.scaled(f)}
+
+
+@node("ADD_SHADER")
+def add_shader(inp, geom, n, sh):
+    return {"Shader": inp.closure("Shader") + inp.closure("Shader_001")}

@@ -1,0 +1,144 @@
+"""Texture nodes: Image Texture, Environment Texture, Checker, Gradient and
+the Sky Texture's fallback.
+
+Unlinked vectors default as in Cycles: Image Texture reads the active UV
+map, procedural textures read Generated coordinates, Environment Texture the
+ray direction. Image lookups (filtering, extension, alpha) are core/texture.py's.
+"""
+
+import numpy as np
+
+from .evaluate import f32, node, varying
+
+MAGENTA = np.array([1.0, 0.0, 1.0], np.float32)
+
+
+def _image(sh, n):
+    key = n.props.get("image", "")
+    images = sh.images
+    if key in images and images[key] is not None:
+        return images[key]
+    sh.warn_once(("image", key), f"image texture '{n.name}' has no image{f' ({key})' if key else ''}; "
+                                 f"it renders magenta")
+    return None
+
+
+def _lookup(sh, n, uv):
+    from ..texture import lookup   # noqa: PLC0415 (texture is optional until an image is read)
+    img = _image(sh, n)
+    uv = np.ascontiguousarray(np.broadcast_to(f32(uv), (len(uv), 3))[:, :2])
+    if img is None:
+        return np.broadcast_to(MAGENTA, (len(uv), 3)).astype(np.float32), np.ones(len(uv), np.float32)
+    return lookup(img, uv, n.props.get("interpolation", "Linear"), n.props.get("extension", "REPEAT"))
+
+
+@varying
+@node("TEX_IMAGE")
+def image_texture(inp, geom, n, sh):
+    uv = inp.vector("Vector") if inp.linked("Vector") else geom.uv("")
+    uv = np.broadcast_to(f32(uv), (geom.n, 3))
+    projection = n.props.get("projection", "FLAT")
+    if projection != "FLAT":
+        sh.warn_once(("projection", projection),
+                     f"image texture projection {projection} is not supported; using Flat")
+    color, alpha = _lookup(sh, n, uv)
+    return {"Color": color, "Alpha": alpha}
+
+
+def direction_to_equirect(d):
+    """Cycles' equirectangular mapping of directions (z up) to (u, v) in [0, 1]."""
+    d = f32(d)
+    u = -np.arctan2(d[..., 1], d[..., 0]) / (2 * np.pi) + 0.5
+    v = np.arctan2(d[..., 2], np.hypot(d[..., 0], d[..., 1])) / np.pi + 0.5
+    return np.stack([u, v], axis=-1).astype(np.float32)
+
+
+def direction_to_mirror_ball(d):
+    d = f32(d)
+    dx, dy, dz = d[..., 0], d[..., 1] - 1.0, d[..., 2]
+    div = 2.0 * np.sqrt(np.maximum(-0.5 * dy, 0.0))
+    div = np.where(div > 0, div, 1)
+    return np.stack([0.5 * dx / div + 0.5, 0.5 * dz / div + 0.5], axis=-1).astype(np.float32)
+
+
+@varying
+@node("TEX_ENVIRONMENT")
+def environment_texture(inp, geom, n, sh):
+    if inp.linked("Vector"):
+        d = inp.vector("Vector")
+    else:
+        d = geom.position if geom.is_world else -geom.incoming
+    d = np.broadcast_to(f32(d), (geom.n, 3))
+    length = np.sqrt((d * d).sum(axis=1, keepdims=True))
+    d = d / np.where(length > 0, length, 1)
+    if n.props.get("projection", "EQUIRECTANGULAR") == "MIRROR_BALL":
+        uv = direction_to_mirror_ball(d)
+    else:
+        uv = direction_to_equirect(d)
+    uv3 = np.concatenate([uv, np.zeros((geom.n, 1), np.float32)], axis=1)
+    n2 = n if "extension" in n.props else _with_props(n, extension="REPEAT")
+    color, _ = _lookup(sh, n2, uv3)
+    return {"Color": color}
+
+
+def _with_props(n, **extra):
+    from .graph import Node   # noqa: PLC0415
+    return Node(n.kind, n.inputs, {**n.props, **extra}, n.name)
+
+
+def _coords(inp, geom):
+    v = inp.vector("Vector") if inp.linked("Vector") else geom.generated
+    return np.broadcast_to(f32(v), (geom.n, 3))
+
+
+@varying
+@node("TEX_CHECKER")
+def checker_texture(inp, geom, n, sh):
+    p = _coords(inp, geom) * f32(inp.float("Scale", 5.0))[..., None]
+    p = (p + 1e-6) * 0.999999
+    i = np.abs(np.floor(p).astype(np.int64)) % 2
+    fac = ((i[:, 0] == i[:, 1]).astype(np.int64) != i[:, 2]).astype(np.float32)
+    c1, c2 = inp.color("Color1", (0.8, 0.8, 0.8)), inp.color("Color2", (0.2, 0.2, 0.2))
+    return {"Color": f32(np.where(fac[:, None] > 0, c1, c2)), "Fac": fac}
+
+
+def gradient(kind, p):
+    x, y = p[:, 0], p[:, 1]
+    if kind == "QUADRATIC":
+        f = np.maximum(x, 0) ** 2
+    elif kind == "EASING":
+        r = np.clip(x, 0, 1)
+        t = r * r
+        f = 3 * t - 2 * t * r
+    elif kind == "DIAGONAL":
+        f = (x + y) * 0.5
+    elif kind == "RADIAL":
+        f = np.arctan2(y, x) / (2 * np.pi) + 0.5
+    elif kind in ("QUADRATIC_SPHERE", "SPHERICAL"):
+        r = np.maximum(0.999999 - np.sqrt((p * p).sum(axis=1)), 0)
+        f = r * r if kind == "QUADRATIC_SPHERE" else r
+    else:   # LINEAR
+        f = x
+    return np.clip(f, 0, 1).astype(np.float32)
+
+
+@varying
+@node("TEX_GRADIENT")
+def gradient_texture(inp, geom, n, sh):
+    f = gradient(n.props.get("gradient_type", "LINEAR"), _coords(inp, geom))
+    return {"Color": np.repeat(f[:, None], 3, axis=1), "Fac": f}
+
+
+@varying
+@node("TEX_SKY")
+def sky_texture(inp, geom, n, sh):
+    """Not Cycles' Nishita sky: a plain blue gradient over a darker ground, of
+    about the default sky's brightness, so scenes lit by a sky stay lit."""
+    sh.warn_once("sky", f"Sky Texture '{n.name}' is approximated by a gradient (no physical sky)")
+    d = inp.vector("Vector") if inp.linked("Vector") else (geom.position if geom.is_world else -geom.incoming)
+    d = np.broadcast_to(f32(d), (geom.n, 3))
+    z = np.clip(d[:, 2] / np.maximum(np.sqrt((d * d).sum(axis=1)), 1e-8), -1, 1)
+    horizon, zenith, ground = f32((0.45, 0.55, 0.7)), f32((0.12, 0.25, 0.6)), f32((0.1, 0.1, 0.1))
+    t = np.sqrt(np.maximum(z, 0))[:, None]
+    sky = horizon + t * (zenith - horizon)
+    return {"Color": f32(np.where((z >= 0)[:, None], sky, ground))}
