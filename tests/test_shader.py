@@ -301,3 +301,20 @@ def test12_non_finite_inputs_give_finite_parameters(rng):
     params = surface_params(scene, _hits(scene, xy))
     for name in ("diffuse", "f0", "alpha", "p_spec"):
         assert np.isfinite(getattr(params, name)).all()
+
+
+def test13_three_hits_are_not_a_colour():
+    """A batch of exactly three hits keeps per-hit floats apart from constant colours."""
+    from core.shader.world import world_environment
+    nodes = [Node("TEX_COORD"), Node("SEPXYZ", {"Vector": Link(0, "Generated")}),
+             Node("MATH", {"Value": Link(1, "Z"), "Value_001": 0.0}, {"operation": "MAXIMUM"}),
+             Node("BACKGROUND", {"Color": Link(2, "Value", "VALUE", "RGBA"), "Strength": 2.0})]
+    env = world_environment(ShaderGraph(nodes=nodes, output=Link(3, "Background")))
+    got = env.radiance(np.float32([[0, 0, 1], [1, 0, 0], [0, 0, -1]]))
+    assert np.allclose(got, [[2, 2, 2], [0, 0, 0], [0, 0, 0]])
+    # A constant world graph is a constant Environment; a black one is none.
+    const = [Node("BACKGROUND", {"Color": (0.2, 0.4, 0.6), "Strength": 0.5})]
+    env = world_environment(ShaderGraph(nodes=const, output=Link(0, "Background")))
+    assert env.constant is not None and np.allclose(env.constant, [0.1, 0.2, 0.3])
+    const[0].inputs["Strength"] = 0.0
+    assert world_environment(ShaderGraph(nodes=const, output=Link(0, "Background"))) is None

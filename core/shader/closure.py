@@ -20,7 +20,7 @@ arrays:
 - the shading normal, the weight-averaged normal of the BSDF nodes that
   gave one (normal maps and bump).
 
-Every field is an array that broadcasts to the batch: ``(3,)`` or ``(N, 3)``
+Every field is an array that broadcasts to the batch: ``(1, 3)`` or ``(N, 3)``
 for colours, ``()`` or ``(N,)`` for scalars, so a graph without per-hit inputs
 stays a handful of numbers until ``Closure.lobes`` spreads it over the hits.
 """

@@ -37,24 +37,35 @@ def f32(x):
     return np.asarray(x, np.float32)
 
 
+def vec(x):
+    """A colour or vector value: always 2-D, (1, 3) for a constant, (N, 3) per hit,
+    so it is never mistaken for three hits' floats."""
+    v = f32(x)
+    return v.reshape(1, 3) if v.ndim < 2 else v
+
+
+BLACK = np.zeros((1, 3), np.float32)
+
+
 def as_float(v):
-    """A value as a float ((), (N,)): colours by luminance, vectors by their mean."""
+    """A value as a float ((), (1,) or (N,)): vectors by the mean of their
+    components (colours are converted by luminance on their links)."""
     if isinstance(v, Closure):
         return f32(0)
     v = f32(v)
-    if v.shape[-1:] == (3,):
+    if v.ndim == 2:
         return v.mean(axis=-1)
     return v
 
 
-def as_color(v, kind=COLOR):
-    """A value as a colour/vector ((3,), (N, 3)); floats repeat into three."""
+def as_color(v):
+    """A value as a colour/vector ((1, 3) or (N, 3)); floats repeat into three."""
     if isinstance(v, Closure):
-        return f32((0, 0, 0))
+        return BLACK
     v = f32(v)
-    if v.shape[-1:] == (3,):
+    if v.ndim == 2:
         return v
-    return np.repeat(v[..., None], 3, axis=-1)
+    return np.repeat(v.reshape(-1, 1), 3, axis=1)
 
 
 def convert(value, from_type, to_type):
@@ -67,10 +78,10 @@ def convert(value, from_type, to_type):
             return value
         return Closure(emission=as_color(value))
     if from_type == SHADER:
-        return f32(0) if to_type in (FLOAT, INT, BOOL) else f32((0, 0, 0))
+        return f32(0) if to_type in (FLOAT, INT, BOOL) else BLACK
     if to_type in (FLOAT, INT, BOOL):
         v = f32(value)
-        if v.shape[-1:] == (3,):
+        if v.ndim == 2:
             v = (v * LUMA).sum(axis=-1) if from_type == COLOR else v.mean(axis=-1)
         if to_type == INT:
             v = np.trunc(v)
@@ -101,8 +112,9 @@ class Inputs:
                 return f32(0)
             return convert(out, v.from_type, v.to_type)
         if v is None:
-            return f32(default)
-        return f32(v)
+            v = default
+        v = f32(v)
+        return v.reshape(1, -1) if v.ndim == 1 else v
 
     def float(self, name, default=0.0):
         return as_float(self.raw(name, default))

@@ -8,7 +8,7 @@ read from the tables the exporter baked (``props["ramp"]``, ``props["curves"]``)
 
 import numpy as np
 
-from .evaluate import LUMA, f32, node
+from .evaluate import LUMA, f32, node, vec
 
 
 def _c(x):
@@ -139,7 +139,7 @@ def mix(inp, geom, n, sh):
         return {"Result_Float": f32(a + t * (b - a))}
     if kind == "VECTOR":
         a, b = inp.vector("A_Vector"), inp.vector("B_Vector")
-        tv = t if f32(t).shape[-1:] == (3,) else _c(t)
+        tv = t if f32(t).ndim == 2 else _c(t)
         return {"Result_Vector": f32(a + tv * (b - a))}
     out = _blend(sh, inp.prop("blend_type", "MIX"), t, inp.color("A_Color", (0.5, 0.5, 0.5)),
                  inp.color("B_Color", (0.5, 0.5, 0.5)))
@@ -221,7 +221,7 @@ def combine_color(inp, geom, n, sh):
         v = hsv_to_rgb(v)
     elif mode == "HSL":
         v = hsl_to_rgb(v)
-    return {"Color": f32(v), "Image": f32(v)}
+    return {"Color": vec(v), "Image": vec(v)}
 
 
 def ramp(props, t):
@@ -257,7 +257,7 @@ def ramp(props, t):
 @node("VALTORGB")
 def color_ramp(inp, geom, n, sh):
     c, a = ramp(n.props, inp.float("Fac", 0.5))
-    return {"Color": c, "Alpha": a}
+    return {"Color": vec(c), "Alpha": a}
 
 
 def _curve(table, lo, hi, x):

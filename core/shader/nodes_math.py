@@ -9,7 +9,7 @@ give 0, a negative base to a fractional power gives 0. Inputs are scalars,
 
 import numpy as np
 
-from .evaluate import f32, node
+from .evaluate import BLACK, f32, node, vec
 
 
 def _div(a, b):
@@ -169,10 +169,10 @@ def vector_math(inp, geom, n, sh):
     fn = VECTOR_OPS.get(op)
     if fn is None:
         sh.warn_once(("vmath", op), f"Vector Math operation {op} is not supported; it gives 0")
-        return {"Vector": f32((0, 0, 0)), "Value": f32(0)}
+        return {"Vector": BLACK, "Value": f32(0)}
     r = fn(a, b, c, s)
     if isinstance(r, tuple):
-        return {"Value": f32(r[1]), "Vector": f32((0, 0, 0))}
+        return {"Value": f32(r[1]), "Vector": BLACK}
     return {"Vector": f32(r), "Value": f32(0)}
 
 
@@ -219,7 +219,7 @@ def map_range(inp, geom, n, sh):
         return {"Vector": f32(r), "Result": f32(0)}
     r = _map_range(inp.float("Value", 1.0), inp.float("From Min", 0.0), inp.float("From Max", 1.0),
                    inp.float("To Min", 0.0), inp.float("To Max", 1.0), inp.float("Steps", 4.0), mode, clamp_)
-    return {"Result": f32(r), "Vector": f32((0, 0, 0))}
+    return {"Result": f32(r), "Vector": BLACK}
 
 
 @node("VALUE")
@@ -230,7 +230,7 @@ def value(inp, geom, n, sh):
 @node("RGB")
 def rgb(inp, geom, n, sh):
     c = inp.prop("color", inp.prop("default_value", (0.5, 0.5, 0.5)))
-    return {"Color": f32(c)[:3]}
+    return {"Color": vec(f32(c)[:3])}
 
 
 @node("SEPXYZ")
@@ -242,4 +242,4 @@ def separate_xyz(inp, geom, n, sh):
 @node("COMBXYZ")
 def combine_xyz(inp, geom, n, sh):
     x, y, z = np.broadcast_arrays(inp.float("X"), inp.float("Y"), inp.float("Z"))
-    return {"Vector": np.stack([x, y, z], axis=-1).astype(np.float32)}
+    return {"Vector": vec(np.stack([x, y, z], axis=-1))}

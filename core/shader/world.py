@@ -1,0 +1,41 @@
+"""The world's node graph as an Environment light (core/environment.py).
+
+A graph that does not depend on the direction becomes a constant world; any
+other is evaluated on whole batches of directions, for the importance map at
+build time and for every ray that escapes. The map's resolution follows
+Cycles' automatic choice: the width of the largest image the world reads
+(at most MAX_RESOLUTION), else DEFAULT_RESOLUTION.
+"""
+
+import numpy as np
+
+from .evaluate import CompiledShader
+from .geometry import WorldGeometry
+
+DEFAULT_RESOLUTION = 1024
+MAX_RESOLUTION = 4096
+
+
+def world_environment(graph, images=None, warn=None):
+    """An Environment for the world graph, or None for a black world."""
+    from ..environment import Environment   # noqa: PLC0415
+    if graph is None or graph.output is None:
+        return None
+    shader = CompiledShader(graph, images, warn)
+    if shader.uniform:
+        rgb = shader.closure(WorldGeometry(np.float32([[0, 0, 1]]))).get("emission", 1)[0]
+        return Environment.constant_color(rgb) if (rgb > 0).any() else None
+
+    def radiance(d):
+        d = np.asarray(d, np.float32)
+        return shader.closure(WorldGeometry(d)).get("emission", len(d))
+
+    widths = [img.width for key in _image_keys(graph) for s in [(images or {}).get(key)] if s is not None
+              for img in s.tiles.values()]
+    resolution = min(max(widths), MAX_RESOLUTION) if widths else DEFAULT_RESOLUTION
+    env = Environment(radiance, resolution=resolution)
+    return None if env.is_black else env
+
+
+def _image_keys(graph):
+    return [n.props.get("image") for n in graph.nodes if n.kind in ("TEX_ENVIRONMENT", "TEX_IMAGE")]
