@@ -26,6 +26,10 @@ class BSDFParams:
     f0: np.ndarray          # (N, 3) specular reflectance at normal incidence
     alpha: np.ndarray       # (N,) GGX roughness (roughness squared)
     p_spec: np.ndarray      # (N,) probability of sampling the specular lobe
+    f90: np.ndarray = None  # (N, 3) reflectance at grazing incidence (None: white);
+                            # a Glossy BSDF reflects its colour at every angle
+    smooth_n: np.ndarray = None  # (N, 3) the unbent smooth normal in the local frame of a
+                                 # normal- or bump-mapped shading normal (None: not bent)
 
     def subset(self, index):
         index = np.asarray(index)
@@ -33,7 +37,9 @@ class BSDFParams:
             index = np.nonzero(index)[0]
         # Row gathers by core/rows.py (a[index] is slow on (N, 3) rows).
         return BSDFParams(gather(self.diffuse, index), gather(self.f0, index),
-                          np.take(self.alpha, index), np.take(self.p_spec, index))
+                          np.take(self.alpha, index), np.take(self.p_spec, index),
+                          None if self.f90 is None else gather(self.f90, index),
+                          None if self.smooth_n is None else gather(self.smooth_n, index))
 
 
 def bsdf_params(materials, material_ids):
@@ -63,8 +69,9 @@ def material_lobes(materials):
     return lobe_params(diffuse, f0, rough)
 
 
-def lobe_params(diffuse, f0, roughness):
-    """BSDFParams from lobe weights: Lambert albedo (N, 3), GGX f0 (N, 3), roughness (N,).
+def lobe_params(diffuse, f0, roughness, f90=None):
+    """BSDFParams from lobe weights: Lambert albedo (N, 3), GGX f0 (N, 3),
+    roughness (N,), and the reflectance at grazing incidence f90 (N, 3; None: white).
 
     The specular lobe is picked in proportion to its share of the luminance,
     kept within [0.1, 0.9] where both lobes reflect."""
@@ -75,7 +82,8 @@ def lobe_params(diffuse, f0, roughness):
     p_spec = np.where((ws > 0) & (wd > 0), np.clip(p_spec, 0.1, 0.9), p_spec)
     alpha = np.maximum(np.asarray(roughness) ** 2, ALPHA_MIN)
     return BSDFParams(np.ascontiguousarray(diffuse, np.float32), np.ascontiguousarray(f0, np.float32),
-                      np.ascontiguousarray(alpha, np.float32), np.ascontiguousarray(p_spec, np.float32))
+                      np.ascontiguousarray(alpha, np.float32), np.ascontiguousarray(p_spec, np.float32),
+                      None if f90 is None else np.ascontiguousarray(f90, np.float32))
 
 
 # --- GGX ------------------------------------------------------------------
@@ -135,9 +143,9 @@ def ggx_sample_visible_normal(wo, alpha, u):
     return np.stack([ex / n, ey / n, ez / n], axis=1).astype(np.float32)
 
 
-def schlick(f0, cos):
+def schlick(f0, cos, f90=None):
     m = np.clip(1.0 - cos, 0.0, 1.0)
-    return f0 + scale(1.0 - f0, m ** 5)
+    return f0 + scale((1.0 if f90 is None else f90) - f0, m ** 5)
 
 
 def _half(wo, wi):
@@ -168,6 +176,8 @@ def _lobes(params, wo, wi, want_f, want_pdf):
     f = p = None
     if want_f:
         f = scale(params.diffuse, wi_up * INV_PI)      # 1 / pi or 0 per row
+        if params.smooth_n is not None:
+            f = scale(f, bump_shadowing(params.smooth_n, wi))
     if want_pdf:
         p = ((1.0 - p_spec) * cosine_hemisphere_pdf(wi[:, 2])).astype(np.float32)
     spec = (p_spec > 0) & wi_up
@@ -185,7 +195,7 @@ def _lobes(params, wo, wi, want_f, want_pdf):
     lam_o = ggx_lambda(o, a)
     if want_f:
         g2 = 1.0 / (1.0 + lam_o + ggx_lambda(i, a))
-        fr = schlick(take(params.f0), dot(o, h))
+        fr = schlick(take(params.f0), dot(o, h), None if params.f90 is None else take(params.f90))
         den = 4.0 * np.maximum(o[:, 2] * i[:, 2], 1e-12)
         spec_f = scale(fr, (d * g2 / den).astype(np.float32))
         if every:
@@ -200,6 +210,24 @@ def _lobes(params, wo, wi, want_f, want_pdf):
         else:
             p[rows] = np.take(p, rows) + np.take(p_spec, rows) * spec_p
     return f, p
+
+
+def bump_shadowing(smooth_n, wi):
+    """Cycles' softening of diffuse light on normal- and bump-mapped surfaces
+    (``bump_shadowing_term``): zero where the light and the bent normal lie
+    on opposite sides of the smooth normal, else the GGX masking term of a
+    roughness that grows with how far the normal was bent, so shading fades
+    out toward the smooth surface's horizon instead of cutting off."""
+    cos_i = dot(smooth_n, wi)
+    cos_d = smooth_n[:, 2]             # the bent normal is the frame's z
+    keep = ~(cos_i * cos_d * wi[:, 2] < 0)
+    ci, cd = np.abs(cos_i), np.abs(cos_d)
+    tan2_d = 1.0 / np.maximum(cd * cd, 1e-12) - 1.0
+    a2 = np.clip(0.125 * tan2_d, 0.0, 1.0)
+    ci2 = np.maximum(ci * ci, 1e-12)
+    g = 2.0 / (1.0 + np.sqrt(1.0 + a2 * (1.0 - ci2) / ci2))
+    g = np.where((cd >= 1.0) | (ci >= 1.0), 1.0, np.where(ci < 1e-6, 0.0, g))
+    return (g * keep).astype(np.float32)
 
 
 def evaluate(params, wo, wi):

@@ -30,6 +30,7 @@ class SceneShading:
         shaders = list(scene.shaders or [])
         self.compiled = [None] * m
         table = bsdf.material_lobes(scene.materials)
+        table.f90 = np.ones_like(table.f0)
         one = WorldGeometry(np.array([[0.0, 0.0, 1.0]], np.float32))
         self.emission = np.array(scene.materials.emission, np.float32, copy=True)
         for i, graph in enumerate(shaders[:m]):
@@ -39,7 +40,7 @@ class SceneShading:
             if shader.uniform:
                 closure = shader.closure(one)
                 row = params_of(closure, 1)
-                for name in ("diffuse", "f0", "alpha", "p_spec"):
+                for name in ("diffuse", "f0", "alpha", "p_spec", "f90"):
                     getattr(table, name)[i] = getattr(row, name)[0]
                 self.emission[i] = closure.get("emission", 1)[0]
             else:
@@ -51,7 +52,8 @@ class SceneShading:
 def params_of(closure, n):
     """BSDFParams of a closure spread over n hits."""
     return bsdf.lobe_params(closure.get("diffuse", n), closure.get("specular", n),
-                            closure.averaged("spec_rough", n, DEFAULT_ROUGHNESS))
+                            closure.averaged("spec_rough", n, DEFAULT_ROUGHNESS),
+                            closure.get("spec_edge", n))
 
 
 def shading(scene):
@@ -88,14 +90,49 @@ def surface_params(scene, surf, camera_ray=False):
         p = params_of(closure, len(rows))
         scatter(params.diffuse, rows, p.diffuse)
         scatter(params.f0, rows, p.f0)
+        scatter(params.f90, rows, p.f90)
         params.alpha[rows] = p.alpha
         params.p_spec[rows] = p.p_spec
         if closure.normal_sum is not None:
             ns = closure.normal(len(rows), hits.ns)
-            ng = hits.ng
-            facing = (ns * ng).sum(axis=1) > 0
-            scatter(surf.ns, rows, np.where(facing[:, None], ns, hits.ns))
+            # Cycles raises bent normals of glossy closures only (its diffuse
+            # closures keep the mapped normal and fade by bump_shadowing);
+            # one normal serves all lobes here, so the larger lobe decides.
+            glossy = p.p_spec > 0.5
+            if glossy.any():
+                ns = np.where(glossy[:, None], valid_reflection_normal(hits.ng, hits.wo, ns), ns)
+            if params.smooth_n is None:       # world space here; ShadingFrame makes it local
+                params.smooth_n = surf.ns.copy()
+            scatter(surf.ns, rows, ns)
     return params
+
+
+def valid_reflection_normal(ng, wo, n):
+    """A bent shading normal raised toward ng just enough that wo mirrored about
+    it stays above the surface, as Cycles does for normal and bump maps
+    (``ensure_valid_specular_reflection``): without it a map tilted away from a
+    grazing view would shade the surface from below."""
+    def dot_(a, b):
+        return (a * b).sum(axis=1)
+    iz = np.maximum(dot_(wo, ng), 0.0)
+    r = 2 * dot_(n, wo)[:, None] * n - wo
+    threshold = np.minimum(0.9 * iz, 0.01)
+    bad = dot_(ng, r) < threshold
+    if not bad.any():
+        return n
+    x = n - dot_(n, ng)[:, None] * ng
+    lx = np.sqrt(dot_(x, x))
+    x = np.where((lx > 1e-8)[:, None], x / np.where(lx > 1e-8, lx, 1)[:, None], n)
+    ix = dot_(wo, x)
+    a = ix * ix + iz * iz
+    b = 2 * (a + iz * threshold)
+    c = (threshold + iz) ** 2
+    root = np.sqrt(np.maximum(b * b - 4 * a * c, 0))
+    a_safe = np.where(a > 0, a, 1)
+    nz2 = np.where(ix < 0, 0.25 * (b + root) / a_safe, 0.25 * (b - root) / a_safe)
+    nz2 = np.clip(nz2, 0, 1)
+    fixed = np.sqrt(1 - nz2)[:, None] * x + np.sqrt(nz2)[:, None] * ng
+    return np.where(bad[:, None], fixed, n).astype(np.float32)
 
 
 def triangle_emission(scene):

@@ -146,6 +146,9 @@ class Scene:
     lights: Lights
     camera: Camera
     world_color: np.ndarray = field(default_factory=lambda: np.zeros(3, np.float32))  # radiance
+    # The world as a light (core/environment.py's Environment: an HDRI, a sky);
+    # None: a constant world of radiance world_color (LightSet builds it).
+    environment: object = None
     width: int = 64
     height: int = 64
     filter_width: float = 1.5   # pixel filter width in pixels (Blackman-Harris, as Cycles)
@@ -203,7 +206,8 @@ class Scene:
             # Graphs are small plain data: their text names every constant.
             shapes = sorted((k, getattr(v, "shape", None)) for k, v in self.images.items())
             arrays.append(np.frombuffer(repr((self.shaders, shapes)).encode(), np.uint8))
-        return _digest(arrays, geometry_key or self.geometry_key())
+        world = self.environment.digest() if self.environment is not None else b""
+        return _digest(arrays, (geometry_key or self.geometry_key()) + world)
 
 
 def _digest(arrays, prefix=b""):
@@ -219,7 +223,7 @@ def _digest(arrays, prefix=b""):
 
 def make_scene(vertices, triangles, material_ids=None, materials=None, lights=None,
                camera=None, world_color=(0, 0, 0), normals=None, uvs=None,
-               object_ids=None, width=64, height=64, filter_width=1.5):
+               object_ids=None, width=64, height=64, filter_width=1.5, corner_data=None):
     """Build a Scene from minimal arrays, computing flat normals where none are given,
     and removing degenerate or non-finite triangles (with a warning)."""
     v = np.ascontiguousarray(vertices, dtype=np.float32).reshape(-1, 3)
@@ -275,4 +279,6 @@ def make_scene(vertices, triangles, material_ids=None, materials=None, lights=No
         camera=camera if camera is not None else Camera(),
         world_color=np.asarray(world_color, np.float32).reshape(3),
         width=int(width), height=int(height), filter_width=float(filter_width), warnings=warnings,
-        face_normals=ng)
+        face_normals=ng,
+        corner_data={k: np.ascontiguousarray(np.asarray(c, np.float32)[keep])
+                     for k, c in (corner_data or {}).items()})

@@ -16,7 +16,9 @@ import traceback
 import numpy as np
 
 from ..core import RenderContext, RenderSettings, render_frame
+from ..core.environment import scene_environment
 from ..core.film import to_rgba
+from ..core.materials import triangle_emission
 from ..core.render import render_restir
 from ..core.restir import ReSTIRSettings
 from . import state
@@ -154,8 +156,8 @@ def render(engine, depsgraph):
             return
         if core_scene.triangle_count == 0:
             engine.report({"WARNING"}, "The scene has no geometry to render")
-        emissive = core_scene.materials.emission[core_scene.material_ids].any()
-        if not (len(core_scene.lights) or core_scene.world_color.any() or emissive):
+        emissive = triangle_emission(core_scene).any()
+        if not (len(core_scene.lights) or scene_environment(core_scene) is not None or emissive):
             engine.report({"WARNING"}, "The scene has no light source (no lights, emissive "
                                        "materials or world light): the image is black")
         ctx = RenderContext.build(core_scene)

@@ -23,8 +23,11 @@ Only ``sync`` touches bpy; everything it read is queued under a lock and
 applied by ``render_step`` between two frames, so the render thread never
 sees a scene half-updated.
 
-Here: the session, its settings and its bookkeeping (Work, Update, _Pending).
-The reading of meshes and cameras is in viewport_sync.py, the combined
+Here: the session, its settings, the hand-over between the threads and the
+frame loop. What sync reads is in viewport_reader.py (SceneReader), how the
+render side applies it in viewport_scene.py (SceneApplier), the bookkeeping
+(Work, Update, _Pending) in viewport_state.py. The reading of meshes and
+cameras is in viewport_sync.py, the combined
 world-space arrays of all objects in viewport_arrays.py; the engine's
 callbacks (``view_update``, ``view_draw``, ``free``) and the GPU drawing are
 in viewport_draw.py, re-exported here with the camera helpers.
@@ -33,27 +36,23 @@ in viewport_draw.py, re-exported here with the camera helpers.
 import threading
 import time
 import traceback
-from dataclasses import dataclass, field, replace
+from dataclasses import replace
 
-import bpy
 import numpy as np
 
 from ..core.camera import PixelFilter
-from ..core.dynamic_accel import DynamicAccel, TraceInterrupted
+from ..core.dynamic_accel import TraceInterrupted
 from ..core.film import to_rgba
-from ..core.integrators.base import RAY_EPS_RELATIVE, RenderContext
-from ..core.parallel import Workers
-from ..core.lights import LightSet
 from ..core.render import CHUNK_PIXELS, path_trace_pixels
 from ..core.restir import ReSTIRGI, ReSTIRSettings
-from ..core.scene import Camera, Lights, Materials, Scene
-from .export import MaterialTable, Warnings, instance_key, row_signature
-from .export.camera import export_camera, render_size
-from .export.lights import is_supported, light_row
-from .export.mesh import GEOMETRY_TYPES
-from .export.world import export_world
+from ..core.scene import Lights, Materials
+from .export import Warnings
 from .viewport_arrays import CombinedArrays
-from .viewport_sync import _Instance, _mesh_key, _read_object_mesh, _same_camera
+from .viewport_reader import SceneReader
+from .viewport_scene import SceneApplier
+from .viewport_state import Work, _Pending
+from .viewport_sync import _same_camera
+from .viewport_state import Update, as_update  # noqa: F401 (re-exported for tests)
 # Re-exported: engine.py, the tests and the benchmarks find them here.
 from .viewport_draw import free, session_settings, view_draw, view_update  # noqa: F401
 from .viewport_sync import camera_from_region, camera_from_view  # noqa: F401
@@ -80,72 +79,7 @@ _COARSER_ABOVE = 1.3
 # a row, so a continuous drag still gets frames out.
 
 
-@dataclass
-class Work:
-    """What the session did, counted (tests assert on these)."""
-    full_exports: int = 0           # whole depsgraph read (first sync)
-    mesh_exports: int = 0           # meshes read from Blender (a full export reads them all)
-    object_walks: int = 0           # passes over the depsgraph's instances (matrices only)
-    transform_updates: int = 0      # placed objects whose matrix changed
-    triangle_updates: int = 0       # times triangle arrays were rewritten (whole or in part)
-    accel_static_builds: int = 0    # Embree builds of the static scene (all but moving objects)
-    accel_dynamic_builds: int = 0   # Embree builds of the small scene of moving objects
-    material_updates: int = 0
-    light_updates: int = 0
-    world_updates: int = 0
-    camera_updates: int = 0
-    resizes: int = 0
-    settings_updates: int = 0
-    frames: int = 0                 # frames (or path-traced samples) rendered
-    abandoned_frames: int = 0       # frames dropped mid-way for an edit, a resize or close
-
-
-@dataclass
-class Update:
-    """One entry of depsgraph.updates, reduced to what sync needs."""
-    id: object                      # the original ID
-    transform: bool
-    geometry: bool
-    shading: bool
-
-
-def as_update(item):
-    """An Update from a DepsgraphUpdate or from a tuple (id, transform, geometry, shading)."""
-    if isinstance(item, Update):
-        return item
-    if isinstance(item, tuple):
-        return Update(*item)
-    return Update(getattr(item.id, "original", item.id), bool(item.is_updated_transform),
-                  bool(item.is_updated_geometry), bool(item.is_updated_shading))
-
-
-
-
-@dataclass
-class _Pending:
-    """Changes read by sync, waiting for the render side (merged until applied)."""
-    instances: dict = None          # latest key -> _Instance snapshot, if objects changed
-    moved: set = field(default_factory=set)      # matrix changed
-    remeshed: set = field(default_factory=set)   # mesh re-read (or new object)
-    reslotted: set = field(default_factory=set)  # material slots changed
-    layout: bool = False            # objects added or removed
-    full: bool = False              # a full export: build everything afresh
-    materials: Materials = None
-    lights: Lights = None
-    world: np.ndarray = None
-    camera: Camera = None
-    size: tuple = None              # display size
-    filter_width: float = None
-    settings: bool = False
-    generation: int = 0
-
-    def empty(self):
-        return (self.instances is None and self.materials is None and self.lights is None
-                and self.world is None and self.camera is None and self.size is None
-                and self.filter_width is None and not self.settings)
-
-
-class ViewportSession:
+class ViewportSession(SceneReader, SceneApplier):
     """The state of one viewport: scene, acceleration structure, reservoirs or
     accumulated samples, the latest frame, and counters of the work done.
 
@@ -195,8 +129,9 @@ class ViewportSession:
         self._frame_index = 0
         self._combined = CombinedArrays()   # every object's triangles, in world space
         self._scene_materials = Materials.from_list([{}])
+        self._scene_shaders, self._scene_images = [], {}
         self._scene_lights = Lights.empty()
-        self._world_color = np.zeros(3, np.float32)
+        self._environment = None
         self._camera = None
         self._filter_width = 1.5
         self._size = None               # display size
@@ -278,151 +213,6 @@ class ViewportSession:
         ``frame_generation`` reaches this)."""
         return self._generation
 
-    def sync(self, depsgraph, updates=None):
-        """Read the depsgraph: everything on the first call (or updates None),
-        then only what ``updates`` (depsgraph.updates, or tuples
-        (id, transform, geometry, shading)) says changed."""
-        scene = depsgraph.scene
-        if self._instances is None or updates is None:
-            self._full_export(depsgraph)
-            return
-        updates = [as_update(u) for u in updates]
-        walk = False
-        reread_objects, reread_data = set(), set()
-        materials, world, scene_changed, camera_moved = [], False, False, False
-        for u in updates:
-            id_ = u.id
-            if isinstance(id_, bpy.types.Object):
-                if u.transform or u.geometry:
-                    walk = True
-                if u.geometry and id_.type != "LIGHT":
-                    reread_objects.add(id_.name)
-                if id_.type == "CAMERA":
-                    camera_moved = True
-            elif isinstance(id_, bpy.types.Material):
-                materials.append(id_)
-            elif isinstance(id_, bpy.types.World):
-                world = True
-            elif isinstance(id_, bpy.types.Scene):
-                scene_changed = True
-                walk = walk or u.transform or u.geometry
-            elif isinstance(id_, bpy.types.Collection):
-                walk = walk or u.transform or u.geometry
-            elif isinstance(id_, (bpy.types.Mesh, bpy.types.Curve, bpy.types.Curves,
-                                  bpy.types.MetaBall)) and u.geometry:
-                walk = True
-                reread_data.add(id_.as_pointer())
-        if materials:
-            changed = [m for m in materials if self._materials.refresh(m, depsgraph)]
-            if changed:
-                self.work.material_updates += len(changed)
-                self._queue(materials=self._materials.table())
-        if walk:
-            self._walk(depsgraph, reread_objects, reread_data)
-        if world or scene_changed:
-            color = export_world(scene.world, self.warnings)
-            if not np.array_equal(color, self._world):
-                self._world = color
-                self.work.world_updates += 1
-                self._queue(world=color)
-        if (camera_moved or scene_changed) and self._view_from_scene:
-            camera = export_camera(depsgraph, self.warnings)
-            if camera is not None and not _same_camera(camera, self._view):
-                self._view = camera
-                self.work.camera_updates += 1
-                self._queue(camera=camera)
-        if scene_changed:
-            fw = float(scene.render.filter_size)
-            if fw != self._filter_width_read:
-                self._filter_width_read = fw
-                self._queue(filter_width=fw)
-
-    def _full_export(self, depsgraph):
-        scene = depsgraph.scene
-        self.work.full_exports += 1
-        self._meshes = {}
-        self._instances = {}
-        self._materials = MaterialTable(self.warnings)
-        self._light_rows = None
-        self._walk(depsgraph, None, None)
-        self._world = export_world(scene.world, self.warnings)
-        self._filter_width_read = float(scene.render.filter_size)
-        changes = dict(materials=self._materials.table(), world=self._world,
-                       filter_width=self._filter_width_read, full=True)
-        if self._view is None:
-            camera = export_camera(depsgraph, self.warnings)
-            if camera is not None:
-                self._view = camera
-                self._view_from_scene = True
-                changes["camera"] = camera
-        if self._display is None:
-            self._display = render_size(scene)
-            changes["size"] = self._display
-        self._queue(**changes)
-
-    def _walk(self, depsgraph, reread_objects, reread_data):
-        """Pass over the depsgraph's instances: matrices, material slots, lights;
-        meshes are read only when new or flagged (reread_* None: all)."""
-        self.work.object_walks += 1
-        instances, light_rows, fresh = {}, [], set()
-        used_meshes = set()
-        materials_before = len(self._materials.rows)
-        for inst in depsgraph.object_instances:
-            obj = inst.object
-            if obj.type == "LIGHT":
-                if is_supported(obj.data):
-                    light_rows.append(light_row(obj, inst.matrix_world, self.warnings))
-                else:
-                    self.warnings(f"Light '{obj.name}' of type {obj.data.type} is not supported")
-                continue
-            if obj.type not in GEOMETRY_TYPES:
-                continue
-            mkey = _mesh_key(obj)
-            used_meshes.add(mkey)
-            orig = obj.original
-            flagged = reread_objects is None or orig.name in reread_objects or (
-                orig.data is not None and orig.data.as_pointer() in (reread_data or ()))
-            if mkey not in fresh and (flagged or mkey not in self._meshes):
-                self._meshes[mkey] = _read_object_mesh(obj)
-                self.work.mesh_exports += 1
-                fresh.add(mkey)
-            mesh = self._meshes[mkey]
-            if mesh is None or len(mesh.triangles) == 0:
-                continue
-            key = instance_key(inst, obj)
-            while key in instances:     # the same key twice: keep both, numbered
-                key = key + (len(instances),)
-            slot_ids = np.array([self._materials.id_of(s.material) for s in obj.material_slots] or [0],
-                                np.int32)
-            instances[key] = _Instance(mesh, np.array(inst.matrix_world, np.float64), slot_ids)
-        for mkey in set(self._meshes) - used_meshes:
-            del self._meshes[mkey]
-
-        old = self._instances or {}
-        common = instances.keys() & old.keys()
-        remeshed = {k for k in common if instances[k].mesh is not old[k].mesh}
-        remeshed |= instances.keys() - old.keys()
-        moved = {k for k in common - remeshed if not np.array_equal(instances[k].matrix, old[k].matrix)}
-        reslotted = {k for k in common - remeshed
-                     if not np.array_equal(instances[k].slot_ids, old[k].slot_ids)}
-        layout = set(instances) != set(old) or list(instances) != list(old)
-        self._instances = instances
-        changes = {}
-        if moved or remeshed or reslotted or layout or not old:
-            self.work.transform_updates += len(moved)
-            changes.update(instances=instances, moved=moved, remeshed=remeshed,
-                           reslotted=reslotted, layout=layout)
-        if len(self._materials.rows) != materials_before:
-            changes["materials"] = self._materials.table()
-        signature = [row_signature(r) for r in light_rows]
-        if signature != self._light_rows:
-            if self._light_rows is not None:
-                self.work.light_updates += 1
-            self._light_rows = signature
-            changes["lights"] = Lights.from_list(light_rows)
-        if changes:
-            self._queue(**changes)
-
     def set_view(self, camera):
         """The viewport camera (a core.Camera; see camera_from_region). Keeps
         the reservoirs: the next frame reprojects them."""
@@ -492,90 +282,6 @@ class ViewportSession:
             self._abandon = False
             self._applying = not p.empty()
         return p
-
-    def _apply(self, p):
-        """Bring the core scene up to date with the pending changes."""
-        if p.empty():
-            return
-        geometry = False
-        if p.instances is not None:
-            self._apply_objects(p)
-            geometry = True
-        if p.materials is not None:
-            self._scene_materials = p.materials
-        if p.lights is not None:
-            self._scene_lights = p.lights
-        if p.world is not None:
-            self._world_color = np.asarray(p.world, np.float32)
-        if p.filter_width is not None:
-            self._filter_width = p.filter_width
-        if p.camera is not None:
-            self._camera = p.camera
-        if p.size is not None:
-            self._size = p.size
-        if p.settings:
-            self._restir.reset()
-            self._divisor = None
-        # Change counters instead of hashing the whole scene every frame
-        # (Scene.versions): geometry, and everything that lights a surface.
-        self._geometry_version += geometry
-        self._lighting_version += geometry or any(
-            x is not None for x in (p.materials, p.lights, p.world))
-        self._applied_generation = p.generation
-        self._build_context(geometry or p.materials is not None or p.lights is not None)
-        self._accum, self._accum_n = None, 0
-
-    def _apply_objects(self, p):
-        inst = p.instances
-        changed = p.moved | p.remeshed
-        a = self._combined.update(inst, changed, p.reslotted, p.layout)
-        self.work.triangle_updates += 1
-        if p.full and self._accel is not None:
-            self._accel.close()
-            self._accel = None
-        if self._accel is None:
-            self._accel = DynamicAccel(a["vertices"], a["triangles"], a["object_ids"], a["keys"],
-                                       self.threads)
-            self._count_builds(0, 0)
-        else:
-            counts = self._accel.static_builds, self._accel.dynamic_builds
-            self._accel.update(a["vertices"], a["triangles"], a["object_ids"], a["keys"],
-                               changed=changed & inst.keys())
-            self._count_builds(*counts)
-        self._accel.interrupt = self._should_abandon
-        self._frames_since_edit = 0
-
-    def _count_builds(self, static_before, dynamic_before):
-        self.work.accel_static_builds += self._accel.static_builds - static_before
-        self.work.accel_dynamic_builds += self._accel.dynamic_builds - dynamic_before
-
-    def _build_context(self, lights_changed):
-        a = self._combined.arrays
-        if a is None or self._camera is None or self._size is None:
-            self._ctx = None
-            return
-        w, h = self._render_resolution()
-        mats = self._scene_materials
-        mids = a["material_ids"]
-        if len(mids) and mids.max() >= len(mats):
-            mids = np.where(mids < len(mats), mids, 0).astype(np.int32)
-        scene = Scene(vertices=a["vertices"], triangles=a["triangles"], normals=a["normals"],
-                      uvs=a["uvs"], material_ids=mids, object_ids=a["object_ids"], materials=mats,
-                      lights=self._scene_lights, camera=self._camera, world_color=self._world_color,
-                      width=w, height=h, filter_width=self._filter_width,
-                      object_keys=list(a["keys"]), object_matrices=a["matrices"].copy(),
-                      face_normals=a["face_normals"],
-                      versions=(self._geometry_version, self._lighting_version))
-        if self._ctx is None or lights_changed:
-            lights = LightSet(scene)
-            eps = RAY_EPS_RELATIVE * scene.extent()
-        else:
-            lights, eps = self._ctx.lights, self._ctx.eps
-            lights.lights = scene.lights
-        self._scene = scene
-        if self._workers is None:
-            self._workers = Workers(self.threads)
-        self._ctx = RenderContext(scene, self._accel, lights, eps, self._workers)
 
     def _render_resolution(self):
         if self._divisor is None:

@@ -89,13 +89,15 @@ def test_corpus_exports_with_light(addon, name):
     # Only what the engine supports: nothing approximated.
     assert core_scene.warnings == []
     assert core_scene.triangle_count > 0
-    emissive = core_scene.materials.emission[core_scene.material_ids].any(axis=1)
+    from restir_gi.core.materials import triangle_emission
+    emissive = triangle_emission(core_scene).any(axis=1)
     lights = sorted(bpy.data.objects[n].data.type for n in core_scene.lights.names)
     assert lights == CORPUS[name]
-    assert len(core_scene.lights.names) or core_scene.world_color.any() or emissive.any()
+    world = core_scene.environment
+    assert len(core_scene.lights.names) or world is not None or emissive.any()
     if name == "emitters":
         # Lit only by its small emissive boxes (12 triangles each), black world.
-        assert not core_scene.world_color.any()
+        assert world is None
         assert 20 <= emissive.sum() // 12 <= 40
     if name == "courtyard":
-        assert core_scene.world_color.max() > 0.5     # a bright open sky
+        assert world.constant.max() > 0.5     # a bright open sky

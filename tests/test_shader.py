@@ -216,8 +216,9 @@ def test07_checker_on_uv_coordinates(rng):
     xy = rng.uniform(0.01, 0.99, (2000, 2)).astype(np.float32)
     params = surface_params(scene, _hits(scene, xy))
     cell = np.floor(xy * 4 + 1e-6).astype(int)
-    white = (cell[:, 0] % 2) == (cell[:, 1] % 2)    # z = 0: Cycles' cell (0, 0, 0) is Color2 ... unless x, y agree
-    # Cycles: (xi % 2 == yi % 2) == zi % 2 gives Color2; zi = 0, so equal parities give Color1.
+    # Cycles: Color1 where (xi % 2 == yi % 2) == zi % 2; at z = 0 (zi = 0) that
+    # is where the x and y parities differ.
+    white = (cell[:, 0] % 2) != (cell[:, 1] % 2)
     assert np.allclose(params.diffuse[white], 1.0)
     assert np.allclose(params.diffuse[~white], 0.0)
 
@@ -262,22 +263,30 @@ def test09_bump_of_a_linear_height_tilts_the_normal(rng):
 
 
 def test10_tangent_normal_map(rng):
-    """(0.5, 0.5, 1) keeps the normal; a colour along +U tilts it toward the
-    tangent; strength 0 keeps it."""
+    """(0.5, 0.5, 1) keeps the normal; a colour along +U tilts it to the
+    tangent; strength 0 keeps it. A glossy surface's bent normal is raised
+    toward ng until the view mirrors above the surface (Cycles' valid
+    reflection); a diffuse one keeps the mapped normal."""
     n = 64
     tangents = np.zeros((2, 3, 4), np.float32)
     tangents[..., 0], tangents[..., 3] = 1.0, 1.0      # tangent +X, sign +1
     out = []
-    for color, strength in (((0.5, 0.5, 1.0), 1.0), ((1.0, 0.5, 0.5), 1.0), ((1.0, 0.5, 0.5), 0.0)):
+    for color, strength, bsdf_kind in (((0.5, 0.5, 1.0), 1.0, "BSDF_DIFFUSE"),
+                                       ((1.0, 0.5, 0.5), 1.0, "BSDF_DIFFUSE"),
+                                       ((1.0, 0.5, 0.5), 0.0, "BSDF_DIFFUSE"),
+                                       ((1.0, 0.5, 0.5), 1.0, "BSDF_GLOSSY")):
         nodes = [Node("NORMAL_MAP", {"Strength": strength, "Color": color}, {"space": "TANGENT", "uv_map": ""}),
-                 Node("BSDF_DIFFUSE", {"Normal": Link(0, "Normal")})]
+                 Node(bsdf_kind, {"Normal": Link(0, "Normal")})]
         scene = _quad_scene(ShaderGraph(nodes=nodes, output=Link(1, "BSDF")), {"tangent:": tangents})
         hits = _hits(scene, rng.uniform(0.1, 0.9, (n, 2)))
         surface_params(scene, hits)
         out.append(hits.ns)
     assert np.allclose(out[0], [0, 0, 1], atol=1e-5)
-    assert np.allclose(out[1], [1, 0, 0], atol=1e-5) or np.allclose(out[1], [0, 0, 1])  # bent past ng: kept
+    assert np.allclose(out[1], [1, 0, 0], atol=1e-5)
     assert np.allclose(out[2], [0, 0, 1], atol=1e-5)
+    assert (out[3][:, 0] > 0.5).all() and (out[3][:, 1] == 0).all()
+    mirrored = 2 * out[3][:, 2:3] * out[3] - np.float32([0, 0, 1])
+    assert (mirrored[:, 2] >= 0.0099).all()
 
 
 def test11_textured_emission_per_triangle():

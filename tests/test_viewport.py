@@ -160,7 +160,7 @@ def test01_first_sync_exports_everything_once(vp):
     scene = session.scene
     assert scene.triangle_count == 32 + 12 + 12
     assert len(scene.lights) == 1
-    np.testing.assert_allclose(scene.world_color, (0.1, 0.1, 0.12), atol=1e-6)
+    np.testing.assert_allclose(scene.environment.constant, (0.1, 0.1, 0.12), atol=1e-6)
     session.close()
 
 

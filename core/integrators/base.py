@@ -50,6 +50,8 @@ class ShadingFrame:
         and bump replace ``surf.ns``) and the local frame of their normals."""
         params = materials.surface_params(scene, surf, camera_ray)
         t, b = orthonormal_basis(surf.ns)
+        if params.smooth_n is not None:     # normals bent by maps: the smooth one, locally
+            params.smooth_n = to_local(params.smooth_n, t, b, surf.ns).astype(np.float32)
         return ShadingFrame(params, t, b, to_local(surf.wo, t, b, surf.ns))
 
     def subset(self, index):
@@ -63,7 +65,8 @@ class ShadingFrame:
         return to_world(w_local, self.t, self.b, surf.ns).astype(np.float32)
 
 
-def direct_light(ctx, surf, frame, seeds, bounce, mis=True, strategy_pdf=None, u_light=None):
+def direct_light(ctx, surf, frame, seeds, bounce, mis=True, strategy_pdf=None, u_light=None,
+                 weigh=None):
     """Next-event estimation at surface hits: one light sample and one shadow ray each.
 
     Returns the reflected radiance toward wo, (N, 3). With ``mis`` the sample is
@@ -72,6 +75,8 @@ def direct_light(ctx, surf, frame, seeds, bounce, mis=True, strategy_pdf=None, u
     strategy_pdf(wi_local) gives the pdf of the direction sampler it is weighted
     against, when that is not the BSDF's own (ReSTIR's uniform initial samples).
     u_light: (u_select, u) to use instead of the seeds' own light dimensions.
+    weigh(ls, wi_local, f, w) -> (N, 3): f weighted, in place of f x w (ReSTIR
+    splits the world's light between NEE and its reservoirs lobe by lobe).
     """
     n = len(surf)
     out = np.zeros((n, 3), np.float32)
@@ -82,7 +87,7 @@ def direct_light(ctx, surf, frame, seeds, bounce, mis=True, strategy_pdf=None, u
         u = samplers.uniform2(seeds, samplers.bounce_dim(bounce, samplers.D_LIGHT_UV))
     else:
         u_sel, u = u_light
-    ls = ctx.lights.sample(surf.p, u_sel, u)
+    ls = ctx.lights.sample(surf.p, u_sel, u, surf.ns)
     wi_local = frame.local(surf, ls.wi)
     if mis and strategy_pdf is None:
         f, pdf_b = bsdf.evaluate_pdf(frame.params, frame.wo_local, wi_local)
@@ -96,7 +101,10 @@ def direct_light(ctx, surf, frame, seeds, bounce, mis=True, strategy_pdf=None, u
     else:
         w = np.ones(n, np.float32)
     with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
-        contrib = scale(f * ls.radiance, cos * w / np.where(ls.pdf > 0, ls.pdf, 1.0))
+        if weigh is None:
+            contrib = scale(f * ls.radiance, cos * w / np.where(ls.pdf > 0, ls.pdf, 1.0))
+        else:
+            contrib = scale(weigh(ls, wi_local, f, w) * ls.radiance, cos / np.where(ls.pdf > 0, ls.pdf, 1.0))
     live = above & (ls.pdf > 0) & (row_max(contrib) > 0) & rows_finite(contrib)
     rows = np.nonzero(live)[0]
     if len(rows) == 0:

@@ -1,9 +1,10 @@
 """The reference path tracer, written as wavefront stages over whole batches.
 
-Per bounce: next-event estimation (light chosen in proportion to power, MIS
-with BSDF sampling), BSDF sampling of the continuation, Russian roulette,
-trace, then emission found by the continuation rays (analytic lights crossed,
-emissive triangles hit, the world on escape) weighted by MIS.
+Per bounce: next-event estimation (light chosen in proportion to power, the
+world among them; MIS with BSDF sampling), BSDF sampling of the continuation,
+Russian roulette, trace, then emission found by the continuation rays
+(analytic lights crossed, emissive triangles hit, the world on escape)
+weighted by MIS against the light sampler's pdf of the same direction.
 
 ``radiance_from_surface`` is what ReSTIR GI calls to estimate the outgoing
 radiance of its samples: it starts at given surface hits, excludes their own
@@ -55,14 +56,16 @@ def radiance_from_surface(ctx, surf, seeds, bounce0, max_bounces, frame=None):
         keep = np.nonzero(valid)[0]
         alive, beta, wi, pdf = alive[keep], gather(beta, keep), gather(wi, keep), pdf[keep]
         p_prev = gather(surf.p, keep)
+        n_prev = gather(surf.ns, keep)      # the normal NEE sampled a constant world about
         o = offset_origins(p_prev, gather(surf.ng, keep), wi, ctx.eps)
         hits = ctx.accel.intersect_closest(o, wi)
         # Emission found by the BSDF rays, each weighted against NEE.
         if ctx.lights.n_analytic:
             scatter_add(L, alive, beta * ctx.lights.emitted_along(o, wi, hits.t, pdf_bsdf=pdf))
         miss = np.nonzero(~hits.hit)[0]
-        if len(miss) and scene.world_color.max() > 0:
-            scatter_add(L, alive[miss], gather(beta, miss) * scene.world_color)
+        if len(miss) and ctx.lights.environment is not None:
+            scatter_add(L, alive[miss], escaped_radiance(ctx.lights, gather(wi, miss), pdf[miss],
+                                                         gather(n_prev, miss), gather(beta, miss)))
         surf, idx = surface_hits(scene, o, wi, hits)
         frame = None
         alive, beta, pdf, p_prev = alive[idx], gather(beta, idx), pdf[idx], gather(p_prev, idx)
@@ -76,6 +79,14 @@ def radiance_from_surface(ctx, surf, seeds, bounce0, max_bounces, frame=None):
                 scatter_add(L, alive[emissive], scale(gather(beta, emissive) * gather(le, emissive), w))
     np.nan_to_num(L, copy=False, nan=0.0, posinf=0.0, neginf=0.0)
     return L
+
+
+def escaped_radiance(lights, wi, pdf_bsdf, n, beta):
+    """beta x the world's radiance seen by BSDF rays that escaped along wi,
+    weighted against NEE (which samples the world with lights.pdf_world from
+    points of normal n) by the power heuristic."""
+    w = power_heuristic(pdf_bsdf, lights.pdf_world(wi, n))
+    return scale(beta * lights.world_radiance(wi), w)
 
 
 @dataclass
@@ -99,7 +110,9 @@ def camera_pass(ctx, width, height, seed, frame, sample, max_bounces, pixel_filt
     hits = ctx.accel.intersect_closest(o, d, tmax)
 
     color = ctx.lights.emitted_along(o, d, np.minimum(hits.t, tmax))
-    color[~hits.hit] += scene.world_color
+    miss = np.nonzero(~hits.hit)[0]
+    if len(miss) and ctx.lights.environment is not None:
+        scatter_add(color, miss, ctx.lights.world_radiance(gather(d, miss)))
     depth = np.full(n, 1e10, np.float32)
     normal = np.zeros((n, 3), np.float32)
     albedo = np.zeros((n, 3), np.float32)

@@ -11,7 +11,7 @@ from ..camera import generate_rays, view_depth
 from ..integrators.base import ShadingFrame
 from ..interaction import SurfaceHits, surface_hits
 from ..parallel import concat_rows
-from ..rows import scatter
+from ..rows import gather, scatter, scatter_add
 
 
 @dataclass
@@ -96,7 +96,9 @@ def _trace_rows(ctx, seed, frame, pixel_filter, jitter, start, stop):
     o, d, tmax = generate_rays(scene.camera, w, h, xy)
     hits = ctx.accel.intersect_closest(o, d, tmax)
     emission = ctx.lights.emitted_along(o, d, np.minimum(hits.t, tmax))
-    emission[~hits.hit] += scene.world_color
+    miss = np.nonzero(~hits.hit)[0]
+    if len(miss) and ctx.lights.environment is not None:
+        scatter_add(emission, miss, ctx.lights.world_radiance(gather(d, miss)))
     surf, idx = surface_hits(scene, o, d, hits)
     valid = np.zeros(n, bool)
     valid[idx] = True

@@ -5,8 +5,20 @@ over the hemisphere of the shading normal; glossy materials sample their BSDF),
 traced to the sample point x2, whose outgoing radiance toward x1 is estimated
 by the path tracer (NEE + MIS, up to max_bounces). The same ray also completes
 the direct lighting of x1: emitters it finds are weighted against NEE by MIS.
-A ray that escapes becomes a sky sample (the world is resampled like indirect
-light, since no light sampling covers it).
+A ray that escapes becomes a sky sample: a far point in its direction whose
+radiance is the world's, resampled like indirect light.
+
+The world's light at x1 is counted once, split between x1's NEE and the sky
+samples. The sky samples' radiance is reused at other pixels, whose NEE
+weighs the same directions differently, so the diffuse lobe's split can't be
+an MIS weight of x1's own densities: it is a function of the direction alone,
+``world_share`` = power heuristic of the world's NEE density against
+NEE_REFERENCE_PDF (a cosine-weighted ray's density along the normal). Bright,
+small regions (a sun in an HDRI) go to NEE, the broad sky to the reservoirs,
+and any such partition of unity keeps both estimates unbiased. The glossy
+lobe is not reused, so its share is plain MIS between NEE and the sample ray.
+A constant world is left out of x1's NEE altogether (``visible_point_lights``):
+it has no bright directions to find, and its light reaches the reservoirs whole.
 
 Reservoirs carry light for the diffuse lobe only (their target is
 luminance(Lo) x cos, the shape of a Lambert lobe): a neighbour's sample reused
@@ -14,6 +26,8 @@ on a glossy lobe lands where the lobe is peaked or empty, which showed as
 sparkle on metals that no number of frames averaged away. The glossy lobe's
 indirect light is this sample's own path-traced estimate, returned apart.
 """
+
+import dataclasses
 
 import numpy as np
 
@@ -30,6 +44,53 @@ from ..sampling import (INV_PI, cosine_hemisphere_pdf, dot, power_heuristic,
 
 COSINE = "COSINE"
 UNIFORM = "UNIFORM"
+NEE_REFERENCE_PDF = INV_PI  # world_share: directions NEE samples more densely than this go to NEE
+
+
+def visible_point_lights(lights):
+    """The LightSet the visible points' NEE samples: all emitters, but a
+    constant world only through the sky samples."""
+    env = lights.environment
+    if env is not None and env.constant is not None:
+        return lights.without_world()
+    return lights
+
+
+def world_share(lights, d):
+    """(N,) share of the world's light from directions d that the visible
+    points' NEE carries for the diffuse lobe (lights: visible_point_lights);
+    the sky samples carry the rest. Depends on the direction only."""
+    if lights.world_pmf <= 0:
+        return np.zeros(len(d), np.float32)
+    q = lights.pdf_world(d)         # a map's density: no normal needed
+    return power_heuristic(q, np.full(len(d), NEE_REFERENCE_PDF, np.float32))
+
+
+def world_sample_radiance(lights, d):
+    """(N, 3) radiance of sky samples in directions d: the world's, less the
+    share the visible points' NEE takes (lights: visible_point_lights)."""
+    return scale(lights.world_radiance(d), 1.0 - world_share(lights, d)).astype(np.float32)
+
+
+def _world_split(lights, params):
+    """direct_light's ``weigh`` at visible points of BSDF parameters params:
+    world samples weigh their diffuse lobe by world_share and their glossy
+    lobe by MIS; other emitters keep their MIS weight. None without a world."""
+    if lights.world_pmf <= 0:
+        return None
+
+    def weigh(ls, wi_local, f, w):
+        fw = scale(f, w)
+        rows = np.nonzero(ls.world)[0] if ls.world is not None else ()
+        if len(rows):
+            fr = gather(f, rows)
+            fd = scale(gather(params.diffuse, rows), (np.take(wi_local[:, 2], rows) > 0) * INV_PI)
+            split = scale(fd, world_share(lights, gather(ls.wi, rows)))
+            split += scale(np.maximum(fr - fd, 0.0), np.take(w, rows))
+            scatter(fw, rows, split.astype(fw.dtype))
+        return fw
+
+    return weigh
 
 
 def _source_pdf(params, wo_local, wi_local, sampling):
@@ -90,9 +151,12 @@ def initial_samples(ctx, gb, seed, frame, sample, max_bounces, sampling=COSINE, 
     # Direct light: NEE weighted against this very sampler, with light_samples
     # per point spread evenly over light choice and light surfaces (stratified),
     # all in one batch ...
+    lights = visible_point_lights(ctx.lights)
+    ctx1 = ctx if lights is ctx.lights else dataclasses.replace(ctx, lights=lights)
     counts = np.broadcast_to(np.maximum(np.asarray(light_samples, np.int64), 1), (len(index),))
-    d = direct_light(ctx, surf, frame_sh, seeds, 0, mis=True,
-                     strategy_pdf=lambda w_l: _source_pdf(params, wo_l, w_l, sampling))
+    d = direct_light(ctx1, surf, frame_sh, seeds, 0, mis=True,
+                     strategy_pdf=lambda w_l: _source_pdf(params, wo_l, w_l, sampling),
+                     weigh=_world_split(lights, params))
     extra = counts - 1
     if extra.any():
         # Samples k = 1 .. count - 1 of the points that take more; sample 0 is
@@ -105,8 +169,9 @@ def initial_samples(ctx, gb, seed, frame, sample, max_bounces, sampling=COSINE, 
         u_light = samplers.stratified_light_uniforms(k, counts[rep], s_sel, s_uv)
         surf_k, frame_k = surf.subset(rep), frame_sh.subset(rep)
         params_k, wo_k = frame_k.params, frame_k.wo_local
-        more = direct_light(ctx, surf_k, frame_k, seeds[rep], 0, mis=True, u_light=u_light,
-                            strategy_pdf=lambda w_l: _source_pdf(params_k, wo_k, w_l, sampling))
+        more = direct_light(ctx1, surf_k, frame_k, seeds[rep], 0, mis=True, u_light=u_light,
+                            strategy_pdf=lambda w_l: _source_pdf(params_k, wo_k, w_l, sampling),
+                            weigh=_world_split(lights, params_k))
         for c in range(3):
             d[:, c] += np.bincount(rep, weights=more[:, c], minlength=len(index)).astype(np.float32)
         d = scale(d, 1.0 / counts.astype(np.float32))
@@ -115,15 +180,16 @@ def initial_samples(ctx, gb, seed, frame, sample, max_bounces, sampling=COSINE, 
     wi_r, weight_r = gather(wi, rows), gather(weight, rows)
     o = offset_origins(gather(surf.p, rows), gather(surf.ng, rows), wi_r, ctx.eps)
     hits = ctx.accel.intersect_closest(o, wi_r)
-    # ... plus the emitters the sample ray finds (analytic lights, emissive triangles).
-    if ctx.lights.n_analytic:
-        scatter_add(d, rows, weight_r * ctx.lights.emitted_along(o, wi_r, hits.t, pdf_bsdf=pdf[rows]))
+    # ... plus the emitters the sample ray finds (analytic lights, emissive
+    # triangles), weighted against the same NEE (lights' selection).
+    if lights.n_analytic:
+        scatter_add(d, rows, weight_r * lights.emitted_along(o, wi_r, hits.t, pdf_bsdf=pdf[rows]))
     surf2, hit_idx = surface_hits(scene, o, wi_r, hits)
     rows2 = rows[hit_idx]
-    if len(ctx.lights.tri_index):
-        le = ctx.lights.triangle_emission(surf2.prim, surf2.front)
+    if len(lights.tri_index):
+        le = lights.triangle_emission(surf2.prim, surf2.front)
         if (row_max(le) > 0).any():
-            pdf_l = ctx.lights.pdf_triangle(surf2.prim, gather(surf.p, rows2), surf2.p, -surf2.wo)
+            pdf_l = lights.pdf_triangle(surf2.prim, gather(surf.p, rows2), surf2.p, -surf2.wo)
             scatter_add(d, rows2, scale(gather(weight, rows2) * le, power_heuristic(pdf[rows2], pdf_l)))
     scatter(direct, index, d)
 
@@ -137,18 +203,23 @@ def initial_samples(ctx, gb, seed, frame, sample, max_bounces, sampling=COSINE, 
         scatter(getattr(res, name), pix, value)
     res.prim2[pix], res.mat2[pix] = surf2.prim, surf2.material
     res.pdf[pix], res.seed[pix] = pdf[rows2], seeds[rows2]
+    lo_glossy = lo
     # Rays that escaped sample the world: a far point in their direction whose
-    # radiance is the world's, so sky light is resampled like any other.
+    # radiance is the world's (less NEE's share), so sky light is resampled
+    # like any other. The glossy lobe takes the world's radiance by MIS.
     miss = rows[~hits.hit]
-    if len(miss) and scene.world_color.max() > 0:
+    if len(miss) and ctx.lights.environment is not None:
         far = world_distance(scene)
         pm = index[miss]
         wi_m = gather(wi, miss)
+        le = lights.world_radiance(wi_m)
+        w_b = power_heuristic(pdf[miss], lights.pdf_world(wi_m, gather(surf.ns, miss)))
+        lo_glossy = np.concatenate([lo, scale(le, w_b).astype(np.float32)])
         scatter(res.x2, pm, gather(surf.p, miss) + wi_m * far)
         for name in ("ng2", "n2", "wo2"):
             scatter(getattr(res, name), pm, -wi_m)
         res.prim2[pm] = res.WORLD_SAMPLE
-        scatter(res.lo, pm, scene.world_color)
+        scatter(res.lo, pm, scale(le, 1.0 - world_share(lights, wi_m)).astype(np.float32))
         res.pdf[pm] = pdf[miss]
         res.seed[pm] = seeds[miss]
         rows2, pix = np.concatenate([rows2, miss]), np.concatenate([pix, pm])
@@ -162,5 +233,5 @@ def initial_samples(ctx, gb, seed, frame, sample, max_bounces, sampling=COSINE, 
         g = gather(weight, rows2) - scale(gather(params.diffuse, rows2),
                                           (cos[rows2] * INV_PI / np.where(pdf[rows2] > 0, pdf[rows2], 1.0))
                                           .astype(np.float32))
-        scatter(glossy_light, pix, np.nan_to_num(np.maximum(g, 0.0) * lo_all, nan=0.0, posinf=0.0))
+        scatter(glossy_light, pix, np.nan_to_num(np.maximum(g, 0.0) * lo_glossy, nan=0.0, posinf=0.0))
     return res, direct, glossy_light

@@ -5,7 +5,8 @@ radiance, so re-running that path in the current scene gives the radiance it
 would have now. Where it changed by more than a threshold (a light moved or was
 switched off), the reservoir's history is dropped (M = 0), so the next frames'
 fresh samples take over within a frame or two. Sky samples are checked against
-the current world colour.
+the current world (initial.world_sample_radiance: the world's radiance in
+their direction, less the share the visible points' NEE takes).
 """
 
 import numpy as np
@@ -15,6 +16,7 @@ from ..interaction import SurfaceHits
 from ..parallel import concat_rows
 from ..rows import gather
 from ..sampling import luminance
+from .initial import visible_point_lights, world_sample_radiance
 
 CHANGE_THRESHOLD = 0.25     # relative change of luminance that invalidates a sample
 
@@ -30,7 +32,7 @@ def validate(ctx, res, max_bounces, threshold=CHANGE_THRESHOLD):
         sky = np.nonzero((r.prim2 == r.WORLD_SAMPLE) & (r.M > 0))[0]
         if len(sky):
             old = luminance(r.lo[sky])
-            new = luminance(np.broadcast_to(ctx.scene.world_color, (len(sky), 3)))
+            new = luminance(world_sample_radiance(visible_point_lights(ctx.lights), -gather(r.wo2, sky)))
             changed_sky = sky[_changed(old, new, threshold)]
             r.M[changed_sky] = r.W[changed_sky] = r.w_sum[changed_sky] = 0
             dropped += len(changed_sky)

@@ -9,7 +9,9 @@ arrays:
 - ``specular``: normal-incidence reflectance of the GGX reflection lobe
   (Glossy BSDF, Principled's metallic and dielectric specular), with
   ``spec_rough`` the weight-averaged roughness of the lobes that fed it:
-  two glossy lobes of different roughness become one of their mean roughness.
+  two glossy lobes of different roughness become one of their mean roughness;
+  ``spec_edge`` its reflectance at grazing incidence (white for Fresnel
+  lobes, the colour for a Glossy BSDF, which Cycles gives no Fresnel).
 - ``transmission``: tint of the GGX refraction lobe (Glass, Refraction,
   Principled transmission) with weight-averaged ``ior`` and ``trans_rough``.
 - ``transparent``: the share of light passing straight through (Transparent
@@ -27,7 +29,8 @@ stays a handful of numbers until ``Closure.lobes`` spreads it over the hits.
 
 import numpy as np
 
-COLOR_FIELDS = ("diffuse", "specular", "transmission", "transparent", "translucent", "emission")
+COLOR_FIELDS = ("diffuse", "specular", "spec_edge", "transmission", "transparent", "translucent",
+                "emission")
 # Scalars summed with a weight and divided by it at the end.
 AVERAGED = {"spec_rough": "spec_w", "trans_rough": "trans_w", "ior": "trans_w"}
 

@@ -157,8 +157,16 @@ class CompiledShader:
             self.warn(text)
         for n in graph.nodes:
             if n.kind not in EVALUATORS:
-                self.warn_once(n.kind, f"node '{n.name or n.kind}' ({n.kind}) is not supported; "
-                                       f"it gives its default outputs")
+                fallback = "renders as a grey diffuse surface" if _is_bsdf(n.kind) else \
+                    "it gives its default outputs"
+                self.warn_once(n.kind, f"node '{n.name or n.kind}' ({n.kind}) is not supported; {fallback}")
+        # Outputs some node reads: an Image Texture un-premultiplies its colour
+        # only when its Alpha output is used, as Cycles does.
+        self.read_outputs = {(v.node, v.socket) for n in graph.nodes for v in n.inputs.values()
+                             if isinstance(v, Link)}
+        if graph.output is not None:
+            self.read_outputs.add((graph.output.node, graph.output.socket))
+        self.index = {id(n): i for i, n in enumerate(graph.nodes)}
         self.uniform = not any(EVALUATORS.get(n.kind) in VARYING for n in graph.nodes)
 
     def warn(self, text):
@@ -176,6 +184,8 @@ class CompiledShader:
         values = []
         for n in self.graph.nodes[:stop]:
             fn = EVALUATORS.get(n.kind)
+            if fn is None and _is_bsdf(n.kind):
+                fn = _unknown_bsdf
             out = {}
             if fn is not None:
                 try:
@@ -221,3 +231,13 @@ VARYING = set()
 def varying(fn):
     VARYING.add(fn)
     return fn
+
+
+def _is_bsdf(kind):
+    return kind.startswith("BSDF_") or kind.endswith("_BSDF")
+
+
+def _unknown_bsdf(inp, geom, n, sh):
+    """A BSDF the engine does not know: diffuse of its Color input (grey without one)."""
+    color = inp.color("Color", (0.8, 0.8, 0.8)) if "Color" in n.inputs else vec((0.8, 0.8, 0.8))
+    return {"BSDF": Closure.bsdf(1.0, None, diffuse=np.clip(color, 0, None))}

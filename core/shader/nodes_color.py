@@ -227,9 +227,19 @@ def combine_color(inp, geom, n, sh):
 def ramp(props, t):
     """Color Ramp: (colour, alpha) at factors t from the baked stops.
 
-    Constant, Linear and Ease interpolate as Blender does; Cardinal and
-    B-Spline are evaluated as Linear (their curves pass near the same stops)."""
+    From the exporter's table of Blender's own evaluation where there is one
+    (every interpolation and colour mode); else from the stops: Constant,
+    Linear and Ease as Blender does, Cardinal and B-Spline as Linear."""
     r = props.get("ramp") or {}
+    table = r.get("table")
+    if table is not None and len(table) > 1:
+        # Blender's own evaluation of the ramp at K even steps (what Cycles renders from).
+        table = np.asarray(table, np.float32).reshape(-1, 4)
+        x = np.clip(f32(t), 0, 1) * (len(table) - 1)
+        i = np.minimum(np.floor(x).astype(np.int64), len(table) - 2)
+        f = (x - i)[..., None]
+        out = table[i] * (1 - f) + table[i + 1] * f
+        return f32(out[..., :3]), f32(out[..., 3])
     pos = np.asarray(r.get("positions") or [0.0, 1.0], np.float32)
     cols = np.asarray(r.get("colors") or [(0, 0, 0, 1), (1, 1, 1, 1)], np.float32).reshape(-1, 4)
     order = np.argsort(pos, kind="stable")
@@ -278,7 +288,7 @@ def rgb_curves(inp, geom, n, sh):
     lo, hi = n.props.get("range", (0.0, 1.0))
     if len(curves) < 4:
         return {"Color": c}
-    r, g, b, comb = curves[0], curves[1], curves[2], curves[3]
+    comb, r, g, b = curves[0], curves[1], curves[2], curves[3]     # stored as C, R, G, B
     out = np.stack([_curve(tab, lo, hi, _curve(comb, lo, hi, c[..., i])) for i, tab in enumerate((r, g, b))],
                    axis=-1)
     t = _c(inp.float("Fac", 1.0))

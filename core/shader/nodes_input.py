@@ -179,10 +179,14 @@ def normal_map(inp, geom, n, sh):
     c = 2 * color - 1
     space = inp.prop("space", "TANGENT")
     if space == "TANGENT":
+        # Cycles builds the frame on the front side's normal and flips the
+        # result for back faces (our normals already face the viewer).
         t, sign = geom.tangent(inp.prop("uv_map", ""))
+        flip = np.where(geom.backfacing > 0, np.float32(-1), np.float32(1))[:, None]
+        front = nrm * flip
         c = np.broadcast_to(c, (geom.n, 3))
-        b = _cross(nrm, t) * sign[:, None]
-        out = c[:, 0:1] * t + c[:, 1:2] * b + c[:, 2:3] * nrm
+        b = _cross(front, t) * sign[:, None]
+        out = (c[:, 0:1] * t + c[:, 1:2] * b + c[:, 2:3] * front) * flip
     else:
         if space.startswith("BLENDER_"):
             c = np.stack([c[..., 0], -c[..., 2], c[..., 1]], axis=-1)
@@ -218,3 +222,9 @@ def bump(inp, geom, n, sh):
     s = f32(strength)
     s = s[:, None] if s.ndim else s
     return {"Normal": _norm(s * out + (1 - s) * nrm)}
+
+
+@node("NORMAL")
+def normal_node(inp, geom, n, sh):
+    d = _norm(f32(n.props.get("direction", (0.0, 0.0, 1.0))).reshape(1, 3))
+    return {"Normal": d, "Dot": f32((_norm(inp.vector("Normal", (0, 0, 1))) * d).sum(axis=-1))}

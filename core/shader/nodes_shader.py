@@ -74,10 +74,12 @@ def principled(inp, geom, n, sh):
         tint = 1 + _c(coat) * (np.clip(inp.color("Coat Tint", (1, 1, 1)), 0, None) - 1)
         below = tint * _c(1 - coat * f0_coat)
     lobes = Closure.bsdf(1.0, None, diffuse=diffuse * below, specular=specular * below,
+                         spec_edge=np.ones((1, 3), np.float32) * below,
                          spec_rough=rough, transmission=transmission * below,
                          trans_rough=rough, ior=ior)
     if np.any(coat > 0):
         lobes = lobes + Closure.bsdf(1.0, None, specular=_c(coat * f0_coat) * np.ones(3, np.float32),
+                                     spec_edge=_c(coat) * np.ones(3, np.float32),
                                      spec_rough=np.clip(inp.float("Coat Roughness", 0.03), 0, 1))
     if normal is not None:
         lobes = _with_normal(lobes, normal)
@@ -113,7 +115,8 @@ def diffuse_bsdf(inp, geom, n, sh):
 
 @node("BSDF_GLOSSY", "BSDF_ANISOTROPIC")
 def glossy_bsdf(inp, geom, n, sh):
-    return {"BSDF": _bsdf(inp, geom, specular=np.clip(inp.color("Color", (0.8, 0.8, 0.8)), 0, None),
+    color = np.clip(inp.color("Color", (0.8, 0.8, 0.8)), 0, None)
+    return {"BSDF": _bsdf(inp, geom, specular=color, spec_edge=color,
                           spec_rough=np.clip(inp.float("Roughness", 0.5), 0, 1))}
 
 
@@ -122,7 +125,7 @@ def glass_bsdf(inp, geom, n, sh):
     color = np.clip(inp.color("Color", (1, 1, 1)), 0, None)
     ior = np.maximum(inp.float("IOR", 1.5), 1.0)
     rough = np.clip(inp.float("Roughness", 0.0), 0, 1)
-    return {"BSDF": _bsdf(inp, geom, specular=color * _c(_f0_from_ior(ior)), spec_rough=rough,
+    return {"BSDF": _bsdf(inp, geom, specular=color * _c(_f0_from_ior(ior)), spec_edge=color, spec_rough=rough,
                           transmission=color, trans_rough=rough, ior=ior)}
 
 

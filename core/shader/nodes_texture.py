@@ -23,13 +23,14 @@ def _image(sh, n):
     return None
 
 
-def _lookup(sh, n, uv):
+def _lookup(sh, n, uv, unassociate=False):
     from ..texture import lookup   # noqa: PLC0415 (texture is optional until an image is read)
     img = _image(sh, n)
     uv = np.ascontiguousarray(np.broadcast_to(f32(uv), (len(uv), 3))[:, :2])
     if img is None:
         return np.broadcast_to(MAGENTA, (len(uv), 3)).astype(np.float32), np.ones(len(uv), np.float32)
-    return lookup(img, uv, n.props.get("interpolation", "Linear"), n.props.get("extension", "REPEAT"))
+    return lookup(img, uv, n.props.get("interpolation", "Linear"), n.props.get("extension", "REPEAT"),
+                  unassociate=unassociate)
 
 
 @varying
@@ -41,7 +42,8 @@ def image_texture(inp, geom, n, sh):
     if projection != "FLAT":
         sh.warn_once(("projection", projection),
                      f"image texture projection {projection} is not supported; using Flat")
-    color, alpha = _lookup(sh, n, uv)
+    alpha_read = (sh.index.get(id(n)), "Alpha") in sh.read_outputs
+    color, alpha = _lookup(sh, n, uv, unassociate=alpha_read)
     return {"Color": color, "Alpha": alpha}
 
 
@@ -97,7 +99,8 @@ def checker_texture(inp, geom, n, sh):
     p = _coords(inp, geom) * f32(inp.float("Scale", 5.0))[..., None]
     p = (p + 1e-6) * 0.999999
     i = np.abs(np.floor(p).astype(np.int64)) % 2
-    fac = ((i[:, 0] == i[:, 1]).astype(np.int64) != i[:, 2]).astype(np.float32)
+    # Cycles: ((xi % 2 == yi % 2) == zi % 2) ? 1 : 0, and Fac 1 is Color1.
+    fac = ((i[:, 0] == i[:, 1]).astype(np.int64) == i[:, 2]).astype(np.float32)
     c1, c2 = inp.color("Color1", (0.8, 0.8, 0.8)), inp.color("Color2", (0.2, 0.2, 0.2))
     return {"Color": f32(np.where(fac[:, None] > 0, c1, c2)), "Fac": fac}
 

@@ -1,12 +1,15 @@
 """Exporter: an evaluated depsgraph to a core.Scene, with the warnings it raised."""
 
+import hashlib
+
 import numpy as np
 
-from ...core import Lights, Materials, make_scene
+from ...core import Lights, make_scene
+from ...core.materials import shading
 from .camera import export_camera, render_size
 from .lights import is_supported, light_row
-from .materials import material_row
-from .mesh import GEOMETRY_TYPES, place, read_mesh
+from .materials import MaterialTable
+from .mesh import GEOMETRY_TYPES, place, read_corner_data, read_mesh
 from .world import export_world
 
 
@@ -21,60 +24,46 @@ class Warnings:
             self.items.append(text)
 
 
-class MaterialTable:
-    """Material rows keyed by the original material, row 0 the default."""
-
-    def __init__(self, warn):
-        self.rows = [material_row(None, warn)]
-        self.index = {}
-        self.warn = warn
-
-    def id_of(self, mat):
-        if mat is None:
-            return 0
-        key = mat.original.as_pointer()
-        if key not in self.index:
-            self.index[key] = len(self.rows)
-            self.rows.append(material_row(mat, self.warn))
-        return self.index[key]
-
-    def refresh(self, mat_original, depsgraph):
-        """Re-read one material; True if its row changed."""
-        i = self.index.get(mat_original.as_pointer())
-        if i is None:
-            return False
-        row = material_row(mat_original.evaluated_get(depsgraph), self.warn)
-        if row_signature(row) == row_signature(self.rows[i]):
-            return False
-        self.rows[i] = row
-        return True
-
-    def table(self):
-        return Materials.from_list(self.rows)
-
-
-def row_signature(row):
-    return tuple(sorted((k, tuple(np.ravel(v).tolist()) if not isinstance(v, str) else v)
-                        for k, v in row.items()))
-
-
-def _object_mesh(obj, cache):
-    """MeshData of an evaluated object (cached by data block), or None."""
+def _object_mesh(obj, cache, keys, warn):
+    """(MeshData, corner data) of an evaluated object, cached by data block
+    (corner data read for ``keys``, more read when a later user needs more);
+    None where the object has no usable geometry (with a warning)."""
     if obj.type == "MESH":
         key = obj.data.as_pointer()
         if key not in cache:
-            cache[key] = read_mesh(obj.data)
-        return cache[key]
+            cache[key] = _read(obj.data, obj.name, warn)
+        entry = cache[key]
+        if entry is not None and not keys <= set(entry[1]):
+            entry[1].update(read_corner_data(obj.data, keys - set(entry[1]), warn, obj.name))
+        return entry
     key = ("converted", obj.name)
     if key not in cache:
         try:
             me = obj.to_mesh()
         except RuntimeError:
             me = None
-        cache[key] = read_mesh(me) if me is not None else None
+        cache[key] = None
         if me is not None:
+            entry = _read(me, obj.name, warn)
+            if entry is not None:
+                entry[1].update(read_corner_data(me, keys, warn, obj.name))
+            cache[key] = entry
             obj.to_mesh_clear()
     return cache[key]
+
+
+def _read(me, name, warn):
+    try:
+        return read_mesh(me), {}
+    except KeyError as exc:      # e.g. loose geometry without a "position" attribute
+        warn(f"Object '{name}' has no readable geometry ({exc}); it is skipped")
+        return None
+
+
+def _object_random(key):
+    """Object Info's Random: a stable number in [0, 1) per placed object."""
+    digest = hashlib.blake2b(repr(key).encode(), digest_size=4).digest()
+    return int.from_bytes(digest, "little") / 2.0 ** 32
 
 
 def instance_key(inst, obj):
@@ -97,10 +86,10 @@ def export_scene(depsgraph, width=None, height=None):
         width, height = render_size(bscene)
     materials = MaterialTable(warn)
     cache = {}
-    verts, tris, normals, uvs, mids, oids, light_rows = [], [], [], [], [], [], []
+    verts, tris, normals, uvs, mids, oids, light_rows, corners = [], [], [], [], [], [], [], []
     offset = 0
     object_index = {}           # instance key -> object id
-    object_matrices = []
+    object_matrices, object_colors = [], []
     for inst in depsgraph.object_instances:
         obj = inst.object
         if obj.type == "LIGHT":
@@ -111,21 +100,24 @@ def export_scene(depsgraph, width=None, height=None):
             continue
         if obj.type not in GEOMETRY_TYPES:
             continue
-        mesh = _object_mesh(obj, cache)
-        if mesh is None or len(mesh.triangles) == 0:
-            continue
-        pos, nrm = place(mesh, inst.matrix_world)
         slot_ids = np.array([materials.id_of(s.material) for s in obj.material_slots] or [0], np.int32)
+        entry = _object_mesh(obj, cache, materials.needs(slot_ids), warn)
+        if entry is None or len(entry[0].triangles) == 0:
+            continue
+        mesh, corner = entry
+        pos, nrm = place(mesh, inst.matrix_world)
         slots = np.clip(mesh.slots, 0, len(slot_ids) - 1)
         verts.append(pos)
         tris.append(mesh.triangles + offset)
         normals.append(nrm)
         uvs.append(mesh.uvs)
+        corners.append(corner)
         mids.append(slot_ids[slots])
         key = instance_key(inst, obj)
         if key not in object_index:
             object_index[key] = len(object_index)
             object_matrices.append(np.array(inst.matrix_world, np.float32))
+            object_colors.append(tuple(obj.color))
         oids.append(np.full(len(mesh.triangles), object_index[key], np.int32))
         offset += len(pos)
 
@@ -136,22 +128,43 @@ def export_scene(depsgraph, width=None, height=None):
     vertices, triangles = cat(verts, (0, 3), np.float32), cat(tris, (0, 3), np.int32)
     per_tri = [cat(mids, (0,), np.int32), cat(normals, (0, 3, 3), np.float32),
                cat(uvs, (0, 3, 2), np.float32), cat(oids, (0,), np.int32)]
+    world = export_world(bscene.world, materials.images, warn)[1]()
     scene = make_scene(
         vertices, triangles,
         material_ids=per_tri[0],
-        materials=Materials.from_list(materials.rows),
+        materials=materials.table(),
         lights=Lights.from_list(light_rows),
         camera=camera,
-        world_color=export_world(bscene.world, warn),
         normals=per_tri[1],
         uvs=per_tri[2],
         object_ids=per_tri[3],
         width=width, height=height,
         filter_width=float(bscene.render.filter_size),
+        corner_data=_corner_data(corners, tris),
     )
+    scene.environment = world
+    scene.shaders = materials.graphs
+    scene.images = materials.images.images
+    scene.object_info = {"Color": np.asarray([c[:3] for c in object_colors] or np.zeros((0, 3)), np.float32),
+                         "Alpha": np.asarray([c[3] for c in object_colors], np.float32),
+                         "Random": np.asarray([_object_random(k) for k in object_index], np.float32)}
+    shading(scene)      # compiles the graphs now: their warnings join the export's
     scene.warnings = warn.items + scene.warnings
     scene.object_keys = list(object_index)
     scene.object_names = [key[0] for key in object_index]
     scene.object_matrices = (np.stack(object_matrices) if object_matrices
                              else np.zeros((0, 4, 4), np.float32))
     return scene, camera is not None
+
+
+def _corner_data(parts, tris):
+    """Per-triangle corner data of all objects by key, zeros where an object
+    had none (make_scene drops it with the triangles it drops)."""
+    keys = set().union(*parts) if parts else set()
+    out = {}
+    for key in sorted(keys):
+        width = {"uv": 2, "color": 4, "tangent": 4}.get(key.partition(":")[0], 3)
+        arrays = [p.get(key) if p.get(key) is not None else np.zeros((len(t), 3, width), np.float32)
+                  for p, t in zip(parts, tris)]
+        out[key] = np.ascontiguousarray(np.concatenate(arrays), np.float32)
+    return out

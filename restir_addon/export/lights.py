@@ -70,3 +70,9 @@ def _unnormalized_factor(row):
 
 def is_supported(light):
     return light.type in _KIND
+
+
+def row_signature(row):
+    """A comparable form of a light row (dict of plain values and arrays)."""
+    return tuple(sorted((k, tuple(np.ravel(v).tolist()) if not isinstance(v, str) else v)
+                        for k, v in row.items()))

@@ -45,8 +45,9 @@ def read_mesh(me):
     nl = len(me.loops)
     cn = _get(me.corner_normals, "vector", np.float32, 3, nl) if nl else np.zeros((0, 3), np.float32)
     normals = cn[loops] if nt else np.zeros((0, 3, 3), np.float32)
-    if me.uv_layers.active is not None and nl:
-        uv = _get(me.uv_layers.active.uv, "vector", np.float32, 2, nl)
+    render_uv = _render_uv_layer(me)
+    if render_uv is not None and nl:
+        uv = _get(render_uv.uv, "vector", np.float32, 2, nl)
         uvs = uv[loops]
     else:
         uvs = np.zeros((nt, 3, 2), np.float32)
@@ -58,6 +59,103 @@ def read_mesh(me):
     else:
         slots = np.zeros(nt, np.int32)
     return MeshData(pos, tri_vert.astype(np.int32), normals, uvs, slots.astype(np.int32))
+
+
+def _render_uv_layer(me):
+    """The UV map Cycles reads by default: the one active for rendering."""
+    for layer in me.uv_layers:
+        if layer.active_render:
+            return layer
+    return me.uv_layers.active
+
+
+def read_corner_data(me, keys, warn, name=""):
+    """Corner data the materials' nodes read (core/shader/geometry.py keys):
+    ``uv:<map>`` (T, 3, 2), ``color:<attribute>`` (T, 3, 4), ``tangent:<map>``
+    (T, 3, 4: tangent and bitangent sign), ``generated`` (T, 3, 3). A map or
+    attribute the mesh lacks reads as zeros, with a warning."""
+    tris = me.loop_triangles
+    nt, nl = len(tris), len(me.loops)
+    out = {}
+    if nt == 0 or not keys:
+        return out
+    loops = _get(tris, "loops", np.int32, 3, nt)
+    for key in sorted(keys):
+        kind, _, arg = key.partition(":")
+        if kind == "uv":
+            layer = me.uv_layers.get(arg) if arg else _render_uv_layer(me)
+            if layer is None:
+                if arg:
+                    warn(f"Mesh '{name}' has no UV map '{arg}'; it reads as zero")
+                out[key] = np.zeros((nt, 3, 2), np.float32)
+                continue
+            out[key] = _get(layer.uv, "vector", np.float32, 2, nl)[loops]
+        elif kind == "color":
+            out[key] = _color_attribute(me, arg, loops, warn, name)
+        elif kind == "tangent":
+            out[key] = _tangents(me, arg, loops, warn, name)
+        elif key == "generated":
+            out[key] = _generated(me, loops)
+    return out
+
+
+def _color_attribute(me, attr_name, loops, warn, name):
+    nt = len(loops)
+    attrs = me.color_attributes
+    attr = attrs.get(attr_name) if attr_name else None
+    if attr is None and not attr_name:
+        idx = attrs.render_color_index
+        attr = attrs[idx] if 0 <= idx < len(attrs) else None
+    if attr is None:
+        generic = me.attributes.get(attr_name) if attr_name else None
+        if generic is None or generic.domain not in ("POINT", "CORNER") or generic.data_type not in (
+                "FLOAT", "FLOAT_VECTOR", "FLOAT_COLOR", "BYTE_COLOR", "FLOAT2"):
+            if attr_name:
+                warn(f"Mesh '{name}' has no attribute '{attr_name}' on points or corners; it reads as zero")
+            return np.zeros((nt, 3, 4), np.float32)
+        attr = generic
+    count = len(attr.data)
+    kind = attr.data_type
+    if kind in ("FLOAT_COLOR", "BYTE_COLOR"):
+        values = _get(attr.data, "color", np.float32, 4, count)       # scene linear for both
+    elif kind == "FLOAT":
+        v = _get(attr.data, "value", np.float32, 1, count)
+        values = np.stack([v, v, v, np.ones_like(v)], axis=1)
+    else:
+        width = 2 if kind == "FLOAT2" else 3
+        v = _get(attr.data, "vector", np.float32, width, count)
+        values = np.concatenate([v, np.zeros((count, 3 - width), np.float32),
+                                 np.ones((count, 1), np.float32)], axis=1)
+    if attr.domain == "POINT":
+        corner_vert = _get(me.attributes[".corner_vert"].data, "value", np.int32, 1, len(me.loops))
+        return values[corner_vert[loops]]
+    return values[loops]
+
+
+def _tangents(me, uv_name, loops, warn, name):
+    nt = len(loops)
+    try:
+        me.calc_tangents(uvmap=uv_name) if uv_name else me.calc_tangents()
+    except RuntimeError as exc:
+        warn(f"Mesh '{name}': no tangents for normal maps ({exc}); normal maps there are flat")
+        return np.zeros((nt, 3, 4), np.float32)
+    nl = len(me.loops)
+    t = _get(me.loops, "tangent", np.float32, 3, nl)
+    sign = _get(me.loops, "bitangent_sign", np.float32, 1, nl)
+    me.free_tangents()
+    return np.concatenate([t, sign[:, None]], axis=1)[loops]
+
+
+def _generated(me, loops):
+    """Blender's Generated coordinates: positions in the mesh's texture space, [0, 1]^3."""
+    nv = len(me.vertices)
+    pos = _get(me.attributes["position"].data, "vector", np.float32, 3, nv)
+    loc = np.asarray(me.texspace_location, np.float32)
+    size = np.asarray(me.texspace_size, np.float32)
+    size = np.where(np.abs(size) > 1e-12, size, 1.0)
+    orco = (pos - loc) / size * 0.5 + 0.5
+    corner_vert = _get(me.attributes[".corner_vert"].data, "value", np.int32, 1, len(me.loops))
+    return orco[corner_vert[loops]].astype(np.float32)
 
 
 def place(mesh, matrix):

@@ -1,27 +1,22 @@
-"""The world background as a constant radiance (colour x strength)."""
+"""The world: its node graph (node_graph.py) as a core Environment light."""
 
-import numpy as np
-
-from .materials import uses_nodes
+from ...core.shader.world import world_environment
 
 
-def export_world(world, warn):
-    if world is None:
-        return np.zeros(3, np.float32)
-    tree = world.node_tree if uses_nodes(world) else None
-    if tree is None:
-        return np.asarray(world.color, np.float32)[:3]
-    output = next((n for n in tree.nodes if n.type == "OUTPUT_WORLD" and n.is_active_output), None)
-    output = output or next((n for n in tree.nodes if n.type == "OUTPUT_WORLD"), None)
-    if output is None or not output.inputs["Surface"].is_linked:
-        return np.zeros(3, np.float32)
-    node = output.inputs["Surface"].links[0].from_node
-    if node.type != "BACKGROUND":
-        warn(f"World node '{node.bl_idname}' is not supported; the world is black")
-        return np.zeros(3, np.float32)
-    color_in, strength_in = node.inputs["Color"], node.inputs["Strength"]
-    if color_in.is_linked or strength_in.is_linked:
-        warn("World background inputs driven by nodes (sky/environment textures) are not "
-             "supported; using the socket values")
-    color = np.asarray(color_in.default_value, np.float32)[:3]
-    return (color * float(strength_in.default_value)).astype(np.float32)
+def export_world(world, images, warn):
+    """(signature, build): the world graph's text, to tell whether it changed,
+    and a function building its Environment (None for a black world; building
+    an importance map evaluates the graph over the whole sphere, so the
+    viewport builds it only when the signature changed)."""
+    from .node_graph import world_graph    # noqa: PLC0415
+    graph = world_graph(world, images)
+    name = world.name if world is not None else ""
+    for text in graph.warnings:
+        warn(f"World '{name}': {text}")
+    graph.warnings = []
+    signature = repr(graph)
+
+    def build():
+        return world_environment(graph, images.images, lambda text: warn(f"World '{name}': {text}"))
+
+    return signature, build

@@ -1,0 +1,239 @@
+"""Scenes for each family of shader nodes, built by script on the example
+Cornell box: what tests/test_nodes_vs_cycles.py renders with both engines and
+bench/contact_sheet.py lays out side by side.
+
+Each builder takes the opened Cornell box scene and changes its materials (or
+world) so one family of nodes decides most of the image.
+"""
+
+import math
+import os
+import tempfile
+
+import numpy as np
+
+
+def _tree(mat):
+    tree = mat.node_tree
+    for n in list(tree.nodes):
+        if n.type != "OUTPUT_MATERIAL":
+            tree.nodes.remove(n)
+    out = next(n for n in tree.nodes if n.type == "OUTPUT_MATERIAL")
+    return tree, out
+
+
+def _new_material(name):
+    import bpy
+    mat = bpy.data.materials.new(name)
+    return mat, *_tree(mat)
+
+
+def _assign(obj_names, mat):
+    import bpy
+    for name in obj_names:
+        ob = bpy.data.objects[name]
+        ob.data.materials.clear()
+        ob.data.materials.append(mat)
+        if not ob.data.uv_layers:
+            ob.data.uv_layers.new(name="UVMap")
+
+
+def _png(name, size=32):
+    """A colourful 8-bit sRGB PNG written to a temporary folder and loaded
+    from there as a file image."""
+    import bpy
+    y, x = np.mgrid[0:size, 0:size] / size
+    rgba = np.ones((size, size, 4), np.float32)
+    rgba[..., 0] = 0.15 + 0.8 * (((x * 4).astype(int) + (y * 4).astype(int)) % 2)
+    rgba[..., 1] = 0.2 + 0.7 * y
+    rgba[..., 2] = 0.9 - 0.7 * x
+    img = bpy.data.images.new(name, size, size)
+    img.pixels.foreach_set(rgba.ravel())
+    path = os.path.join(tempfile.mkdtemp(prefix="restir-tex-"), f"{name}.png")
+    img.filepath_raw = path
+    img.file_format = "PNG"
+    img.save()
+    bpy.data.images.remove(img)
+    return bpy.data.images.load(path)
+
+
+def image(scene):
+    """Image Texture (UV, Linear and Closest) into Diffuse and Principled."""
+    mat, tree, out = _new_material("Textured")
+    tex = tree.nodes.new("ShaderNodeTexImage")
+    tex.image = _png("pattern")
+    bsdf = tree.nodes.new("ShaderNodeBsdfDiffuse")
+    tree.links.new(tex.outputs["Color"], bsdf.inputs["Color"])
+    tree.links.new(bsdf.outputs[0], out.inputs["Surface"])
+    _assign(["BackWall", "Floor"], mat)
+    mat2, tree2, out2 = _new_material("TexturedBoxes")
+    tex2 = tree2.nodes.new("ShaderNodeTexImage")
+    tex2.image = tex.image
+    tex2.interpolation = "Closest"
+    mapping = tree2.nodes.new("ShaderNodeMapping")
+    mapping.inputs["Scale"].default_value = (2.0, 2.0, 1.0)
+    coords = tree2.nodes.new("ShaderNodeTexCoord")
+    tree2.links.new(coords.outputs["UV"], mapping.inputs["Vector"])
+    tree2.links.new(mapping.outputs["Vector"], tex2.inputs["Vector"])
+    p = tree2.nodes.new("ShaderNodeBsdfPrincipled")
+    p.inputs["Roughness"].default_value = 0.6
+    tree2.links.new(tex2.outputs["Color"], p.inputs["Base Color"])
+    tree2.links.new(p.outputs[0], out2.inputs["Surface"])
+    _assign(["TallBox", "ShortBox"], mat2)
+
+
+def procedural(scene):
+    """Checker, Gradient, Color Ramp, Math, Mix (multiply), Map Range, Hue/Saturation."""
+    mat, tree, out = _new_material("Procedural")
+    coords = tree.nodes.new("ShaderNodeTexCoord")
+    checker = tree.nodes.new("ShaderNodeTexChecker")
+    checker.inputs["Scale"].default_value = 3.0
+    tree.links.new(coords.outputs["Generated"], checker.inputs["Vector"])
+    ramp = tree.nodes.new("ShaderNodeValToRGB")
+    ramp.color_ramp.elements[0].color = (0.9, 0.3, 0.1, 1)
+    ramp.color_ramp.elements[1].color = (0.1, 0.4, 0.8, 1)
+    tree.links.new(checker.outputs["Fac"], ramp.inputs["Fac"])
+    gradient = tree.nodes.new("ShaderNodeTexGradient")
+    tree.links.new(coords.outputs["Object"], gradient.inputs["Vector"])
+    mix = tree.nodes.new("ShaderNodeMix")
+    mix.data_type = "RGBA"
+    mix.blend_type = "MULTIPLY"
+    mix.inputs["Factor"].default_value = 0.7
+    tree.links.new(ramp.outputs["Color"], mix.inputs["A"])
+    tree.links.new(gradient.outputs["Color"], mix.inputs["B"])
+    hsv = tree.nodes.new("ShaderNodeHueSaturation")
+    hsv.inputs["Hue"].default_value = 0.6
+    tree.links.new(mix.outputs["Result"], hsv.inputs["Color"])
+    maprange = tree.nodes.new("ShaderNodeMapRange")
+    maprange.inputs["To Min"].default_value = 0.3
+    maprange.inputs["To Max"].default_value = 0.8
+    tree.links.new(gradient.outputs["Fac"], maprange.inputs["Value"])
+    p = tree.nodes.new("ShaderNodeBsdfPrincipled")
+    tree.links.new(hsv.outputs["Color"], p.inputs["Base Color"])
+    tree.links.new(maprange.outputs["Result"], p.inputs["Roughness"])
+    tree.links.new(p.outputs[0], out.inputs["Surface"])
+    _assign(["BackWall", "Floor", "TallBox", "ShortBox"], mat)
+
+
+def shaders(scene):
+    """Mix Shader by Layer Weight, Add Shader, Glossy, Emission."""
+    mat, tree, out = _new_material("Mixed")
+    d = tree.nodes.new("ShaderNodeBsdfDiffuse")
+    d.inputs["Color"].default_value = (0.8, 0.5, 0.2, 1)
+    g = tree.nodes.new("ShaderNodeBsdfGlossy")
+    g.inputs["Roughness"].default_value = 0.35
+    g.inputs["Color"].default_value = (0.7, 0.7, 0.9, 1)
+    lw = tree.nodes.new("ShaderNodeLayerWeight")
+    lw.inputs["Blend"].default_value = 0.4
+    mix = tree.nodes.new("ShaderNodeMixShader")
+    tree.links.new(lw.outputs["Facing"], mix.inputs["Fac"])
+    tree.links.new(d.outputs[0], mix.inputs[1])
+    tree.links.new(g.outputs[0], mix.inputs[2])
+    tree.links.new(mix.outputs[0], out.inputs["Surface"])
+    _assign(["TallBox", "ShortBox"], mat)
+    mat2, tree2, out2 = _new_material("Added")
+    d2 = tree2.nodes.new("ShaderNodeBsdfDiffuse")
+    d2.inputs["Color"].default_value = (0.5, 0.5, 0.5, 1)
+    e2 = tree2.nodes.new("ShaderNodeEmission")
+    e2.inputs["Strength"].default_value = 0.3
+    e2.inputs["Color"].default_value = (0.2, 0.4, 1.0, 1)
+    add = tree2.nodes.new("ShaderNodeAddShader")
+    tree2.links.new(d2.outputs[0], add.inputs[0])
+    tree2.links.new(e2.outputs[0], add.inputs[1])
+    tree2.links.new(add.outputs[0], out2.inputs["Surface"])
+    _assign(["BackWall"], mat2)
+
+
+def normals(scene):
+    """Bump from a smooth height, and a tangent-space Normal Map of a constant colour."""
+    mat, tree, out = _new_material("Bumped")
+    coords = tree.nodes.new("ShaderNodeTexCoord")
+    sep = tree.nodes.new("ShaderNodeSeparateXYZ")
+    tree.links.new(coords.outputs["Object"], sep.inputs["Vector"])
+    mul = tree.nodes.new("ShaderNodeMath")
+    mul.operation = "MULTIPLY"
+    mul.inputs[1].default_value = 6.0
+    tree.links.new(sep.outputs["X"], mul.inputs[0])
+    sine = tree.nodes.new("ShaderNodeMath")
+    sine.operation = "SINE"
+    tree.links.new(mul.outputs[0], sine.inputs[0])
+    bump = tree.nodes.new("ShaderNodeBump")
+    bump.inputs["Distance"].default_value = 0.1
+    tree.links.new(sine.outputs[0], bump.inputs["Height"])
+    d = tree.nodes.new("ShaderNodeBsdfDiffuse")
+    tree.links.new(bump.outputs[0], d.inputs["Normal"])
+    tree.links.new(d.outputs[0], out.inputs["Surface"])
+    _assign(["BackWall"], mat)
+    mat2, tree2, out2 = _new_material("NormalMapped")
+    nm = tree2.nodes.new("ShaderNodeNormalMap")
+    nm.inputs["Color"].default_value = (0.75, 0.5, 0.85, 1)
+    d2 = tree2.nodes.new("ShaderNodeBsdfDiffuse")
+    tree2.links.new(nm.outputs[0], d2.inputs["Normal"])
+    tree2.links.new(d2.outputs[0], out2.inputs["Surface"])
+    _assign(["Floor"], mat2)
+
+
+def attributes(scene):
+    """Color Attribute on the boxes' corners, Object Info's Random through a ramp."""
+    import bpy
+    mat, tree, out = _new_material("VertexColored")
+    attr = tree.nodes.new("ShaderNodeVertexColor")
+    attr.layer_name = "Col"
+    d = tree.nodes.new("ShaderNodeBsdfDiffuse")
+    tree.links.new(attr.outputs["Color"], d.inputs["Color"])
+    tree.links.new(d.outputs[0], out.inputs["Surface"])
+    rng = np.random.default_rng(7)
+    for name in ("TallBox", "ShortBox"):
+        me = bpy.data.objects[name].data
+        col = me.color_attributes.new("Col", "FLOAT_COLOR", "CORNER")
+        values = np.ones((len(col.data), 4), np.float32)
+        values[:, :3] = rng.uniform(0.05, 0.9, (len(col.data), 3))
+        col.data.foreach_set("color", values.ravel())
+    _assign(["TallBox", "ShortBox"], mat)
+    mat2, tree2, out2 = _new_material("ByObject")
+    info = tree2.nodes.new("ShaderNodeObjectInfo")
+    ramp = tree2.nodes.new("ShaderNodeValToRGB")
+    tree2.links.new(info.outputs["Color"], ramp.inputs["Fac"])
+    d2 = tree2.nodes.new("ShaderNodeBsdfDiffuse")
+    tree2.links.new(ramp.outputs["Color"], d2.inputs["Color"])
+    tree2.links.new(d2.outputs[0], out2.inputs["Surface"])
+    for name, c in (("BackWall", (0.8, 0.8, 0.8, 1)), ("Floor", (0.4, 0.4, 0.4, 1))):
+        bpy.data.objects[name].color = c
+    _assign(["BackWall", "Floor"], mat2)
+
+
+def emission(scene):
+    """Emission coloured by Blackbody, the ceiling light of the box."""
+    mat, tree, out = _new_material("Blackbody")
+    bb = tree.nodes.new("ShaderNodeBlackbody")
+    bb.inputs["Temperature"].default_value = 4000.0
+    e = tree.nodes.new("ShaderNodeEmission")
+    e.inputs["Strength"].default_value = 15.0
+    tree.links.new(bb.outputs[0], e.inputs["Color"])
+    tree.links.new(e.outputs[0], out.inputs["Surface"])
+    _assign(["CeilingLight"], mat)
+
+
+def hdri(scene, name="sunset.exr"):
+    """An HDRI world (Environment Texture through Mapping), the box opened to it."""
+    import bpy
+    for obj in ("Ceiling", "CeilingLight", "LeftWall"):
+        bpy.data.objects.remove(bpy.data.objects[obj])
+    world = bpy.data.worlds.new("HDRI")
+    scene.world = world
+    tree = world.node_tree
+    bg = next(n for n in tree.nodes if n.type == "BACKGROUND")
+    env = tree.nodes.new("ShaderNodeTexEnvironment")
+    folder = bpy.utils.system_resource("DATAFILES", path="studiolights/world")
+    env.image = bpy.data.images.load(os.path.join(folder, name))
+    mapping = tree.nodes.new("ShaderNodeMapping")
+    mapping.inputs["Rotation"].default_value = (0.0, 0.0, math.radians(60))
+    coords = tree.nodes.new("ShaderNodeTexCoord")
+    tree.links.new(coords.outputs["Generated"], mapping.inputs["Vector"])
+    tree.links.new(mapping.outputs["Vector"], env.inputs["Vector"])
+    tree.links.new(env.outputs["Color"], bg.inputs["Color"])
+    bg.inputs["Strength"].default_value = 1.5
+
+
+FAMILIES = {"image": image, "procedural": procedural, "shaders": shaders, "normals": normals,
+            "attributes": attributes, "emission": emission, "hdri": hdri}

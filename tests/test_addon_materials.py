@@ -1,0 +1,143 @@
+"""Export of materials and worlds: every material becomes a shader graph
+(restir_addon/export/node_graph.py) that the core evaluates; here the lobes
+and emission it shades with are checked against values computed from the
+numbers the scene was built with."""
+
+import numpy as np
+import pytest
+
+from core.bsdf import principled_lobes
+from export_util import QUAD, add_mesh, export, fresh, grid, material, row, tri_points
+
+
+def test_material_slots_map_per_triangle(addon):
+    fresh()
+    verts, faces = grid(3, 1)
+    ob = add_mesh("obj", verts, faces)
+    red = material("red", "ShaderNodeBsdfDiffuse", Color=(1, 0, 0, 1))
+    blue = material("blue", "ShaderNodeBsdfDiffuse", Color=(0, 0, 1, 1))
+    green = material("green", "ShaderNodeBsdfDiffuse", Color=(0, 1, 0, 1))
+    ob.data.materials.append(red)
+    ob.data.materials.append(blue)
+    ob.data.materials.append(blue)
+    ob.material_slots[2].link = "OBJECT"           # the object's own material wins
+    ob.material_slots[2].material = green
+    ob.data.polygons.foreach_set("material_index", [1, 0, 2])
+    ob.data.update()
+    s = export(addon)
+
+    assert s.triangle_count == 6
+    centre_x = tri_points(s).mean(axis=1)[:, 0]
+    from core.materials import shading
+    colour = shading(s).table.diffuse[s.material_ids]
+    for x, want in ((-1 / 3, (0, 0, 1)), (0, (1, 0, 0)), (1 / 3, (0, 1, 0))):
+        sel = np.abs(centre_x - x) < 1 / 6
+        assert sel.sum() == 2
+        np.testing.assert_allclose(colour[sel], [want, want])
+    assert s.warnings == []
+
+
+def test_shader_nodes_read(addon):
+    fresh()
+    mats = [
+        material("principled", Base_Color=(0.2, 0.3, 0.4, 1), Metallic=0.7, Roughness=0.25,
+                 IOR=1.45, Specular_IOR_Level=0.6, Emission_Color=(1, 0.5, 0.25, 1),
+                 Emission_Strength=2.0),
+        material("diffuse", "ShaderNodeBsdfDiffuse", Color=(0.1, 0.6, 0.2, 1)),
+        material("glossy", "ShaderNodeBsdfGlossy", Color=(0.9, 0.8, 0.7, 1), Roughness=0.15),
+        material("emission", "ShaderNodeEmission", Color=(1, 0.5, 0.25, 1), Strength=4.0),
+    ]
+    for i, mat in enumerate(mats):
+        add_mesh(mat.name, *QUAD, location=(2 * i, 0, 0)).data.materials.append(mat)
+    s = export(addon)
+    assert s.warnings == []
+
+    p = row(s, "principled")
+    diffuse, f0, rough = principled_lobes(np.float32([0.2, 0.3, 0.4]), np.float32(0.7), np.float32(0.25),
+                                          np.float32(1.45), np.float32(0.6))
+    np.testing.assert_allclose(p["diffuse"], diffuse.ravel(), rtol=1e-5)
+    np.testing.assert_allclose(p["f0"], f0.ravel(), rtol=1e-5)
+    np.testing.assert_allclose(p["alpha"], 0.25 ** 2, rtol=1e-5)
+    np.testing.assert_allclose(p["emission"], (2, 1, 0.5), rtol=1e-6)
+
+    d = row(s, "diffuse")
+    np.testing.assert_allclose(d["diffuse"], (0.1, 0.6, 0.2), rtol=1e-6)
+    np.testing.assert_allclose(d["f0"], 0)                  # pure Lambert
+    np.testing.assert_allclose(d["emission"], 0)
+
+    g = row(s, "glossy")
+    np.testing.assert_allclose(g["f0"], (0.9, 0.8, 0.7), rtol=1e-6)
+    np.testing.assert_allclose(g["diffuse"], 0)
+    np.testing.assert_allclose(g["alpha"], 0.15 ** 2, rtol=1e-5)
+
+    e = row(s, "emission")
+    np.testing.assert_allclose(e["emission"], (4, 2, 1), rtol=1e-6)
+    np.testing.assert_allclose(e["diffuse"], 0)
+    np.testing.assert_allclose(e["f0"], 0)
+
+    # Triangles point at their own object's material.
+    for name in ("principled", "diffuse", "glossy", "emission"):
+        ids = s.material_ids[s.object_ids == s.object_names.index(name)]
+        assert (ids == row(s, name)["id"]).all()
+
+
+@pytest.mark.parametrize("node_type, label", [("ShaderNodeBsdfToon", "Toon BSDF"),
+                                              ("ShaderNodeBsdfHairPrincipled", "Principled Hair BSDF")])
+def test_unsupported_node_warns_once(addon, node_type, label):
+    """An unknown BSDF renders as a grey diffuse surface (of its Color input,
+    where it has one), with one warning naming the material and the node."""
+    fresh()
+    mat = material("odd", node_type)
+    for i in range(3):                 # three users, two slots on one of them
+        ob = add_mesh(f"obj{i}", *QUAD, location=(2 * i, 0, 0))
+        ob.data.materials.append(mat)
+    ob.data.materials.append(mat)
+    s = export(addon)
+
+    naming = [w for w in s.warnings if label in w or node_type[10:].upper() in w.upper()]
+    assert len(naming) == 1, s.warnings
+    assert "odd" in naming[0]
+    assert len(s.warnings) == 1, s.warnings
+    r = row(s, "odd")
+    node = next(n for n in mat.node_tree.nodes if n.bl_idname == node_type)
+    color = node.inputs["Color"].default_value[:3] if "Color" in node.inputs else (0.8, 0.8, 0.8)
+    np.testing.assert_allclose(r["diffuse"], color, rtol=1e-5)
+    np.testing.assert_allclose(r["emission"], 0)
+
+
+def test_textured_inputs_are_evaluated(addon):
+    """A texture feeding an input is evaluated on the hits: the material is no
+    longer one row, and nothing warns about it."""
+    fresh()
+    mat = material("textured", Base_Color=(0.3, 0.2, 0.1, 1))
+    tree = mat.node_tree
+    checker = tree.nodes.new("ShaderNodeTexChecker")
+    tree.links.new(checker.outputs["Color"], tree.nodes["Principled BSDF"].inputs["Base Color"])
+    add_mesh("obj", *QUAD).data.materials.append(mat)
+    s = export(addon)
+    from core.materials import shading
+    assert s.warnings == []
+    assert shading(s).varying == [row(s, "textured")["id"]]
+    assert "generated" in s.corner_data
+
+
+def test_world_colour_times_strength(addon):
+    import bpy
+    scene = fresh()
+    assert scene.world is None
+    assert export(addon).environment is None
+
+    world = bpy.data.worlds.new("World")
+    scene.world = world
+    bg = world.node_tree.nodes["Background"]
+    bg.inputs["Color"].default_value = (0.2, 0.4, 0.6, 1)
+    bg.inputs["Strength"].default_value = 2.5
+    s = export(addon)
+    np.testing.assert_allclose(s.environment.constant, (0.5, 1.0, 1.5), rtol=1e-6)
+    assert s.warnings == []
+
+    sky = world.node_tree.nodes.new("ShaderNodeTexSky")
+    world.node_tree.links.new(sky.outputs[0], bg.inputs["Color"])
+    s = export(addon)
+    assert s.environment is not None and s.environment.constant is None
+    assert len(s.warnings) == 1 and "World" in s.warnings[0] and "Sky" in s.warnings[0], s.warnings
