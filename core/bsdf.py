@@ -30,6 +30,9 @@ class BSDFParams:
                             # a Glossy BSDF reflects its colour at every angle
     smooth_n: np.ndarray = None  # (N, 3) the unbent smooth normal in the local frame of a
                                  # normal- or bump-mapped shading normal (None: not bent)
+    layered: np.ndarray = None   # (N, 3) the part of ``diffuse`` under a dielectric
+                                 # specular layer of normal reflectance layer_f0 (N,)
+    layer_f0: np.ndarray = None
 
     def subset(self, index):
         index = np.asarray(index)
@@ -39,7 +42,9 @@ class BSDFParams:
         return BSDFParams(gather(self.diffuse, index), gather(self.f0, index),
                           np.take(self.alpha, index), np.take(self.p_spec, index),
                           None if self.f90 is None else gather(self.f90, index),
-                          None if self.smooth_n is None else gather(self.smooth_n, index))
+                          None if self.smooth_n is None else gather(self.smooth_n, index),
+                          None if self.layered is None else gather(self.layered, index),
+                          None if self.layer_f0 is None else np.take(self.layer_f0, index))
 
 
 def bsdf_params(materials, material_ids):
@@ -51,22 +56,53 @@ def bsdf_params(materials, material_ids):
 
 
 def principled_lobes(base, metallic, roughness, ior, level):
-    """(diffuse, f0, roughness) of the Principled subset, for any broadcastable
-    inputs: the metallic share reflects base colour, the dielectric share a
-    Fresnel f0 of its IOR (scaled by 2 x Specular IOR Level) over a Lambert
-    base weighted by (1 - f0)."""
+    """(diffuse, f0, roughness, layer_f0) of the Principled subset, for any
+    broadcastable inputs: the metallic share reflects base colour, the
+    dielectric share a Fresnel f0 of its IOR (scaled by 2 x Specular IOR
+    Level) layered over a Lambert base; ``at_view`` takes from that base what
+    the layer reflects at the viewing angle."""
     metallic = np.clip(metallic, 0, 1)[..., None]
     f0_dielectric = np.minimum(((ior - 1) / (ior + 1)) ** 2 * 2.0 * np.maximum(level, 0), 1.0)[..., None]
     f0 = (1 - metallic) * f0_dielectric + metallic * base
-    diffuse = (1 - metallic) * (1 - f0_dielectric) * base
-    return diffuse, f0, np.clip(roughness, 0, 1)
+    diffuse = (1 - metallic) * base
+    return diffuse, f0, np.clip(roughness, 0, 1), f0_dielectric[..., 0]
 
 
 def material_lobes(materials):
     """BSDFParams with one row per material of the table."""
-    diffuse, f0, rough = principled_lobes(materials.base_color, materials.metallic,
-                                          materials.roughness, materials.ior, materials.specular)
-    return lobe_params(diffuse, f0, rough)
+    diffuse, f0, rough, layer_f0 = principled_lobes(materials.base_color, materials.metallic,
+                                                    materials.roughness, materials.ior, materials.specular)
+    from .microfacet_albedo import dielectric_f90   # noqa: PLC0415
+    metallic = np.clip(materials.metallic, 0, 1)[:, None]
+    f90 = metallic + (1 - metallic) * dielectric_f90(layer_f0)[:, None]
+    p = lobe_params(diffuse, f0, rough, np.array(np.broadcast_to(f90, f0.shape)))
+    p.layered = p.diffuse.copy()
+    p.layer_f0 = np.array(np.broadcast_to(layer_f0, p.alpha.shape), np.float32)
+    return p
+
+
+def at_view(params, wo):
+    """Adjust parameters to the viewing direction wo (local, (N, 3)), in place,
+    as Cycles' precomputed albedo tables do (core/microfacet_albedo.py): the
+    layered diffuse keeps 1 - E of the dielectric layer above it, and the GGX
+    lobe is scaled up by the energy single scattering loses."""
+    from .microfacet_albedo import albedo_terms   # noqa: PLC0415
+    if len(params.alpha) == 0:
+        return params
+    cos = np.clip(wo[:, 2], 0.0, 1.0)
+    rough = np.sqrt(params.alpha)
+    a, b = albedo_terms(rough, cos)
+    if params.layered is not None and params.layer_f0 is not None:
+        from .microfacet_albedo import dielectric_f90   # noqa: PLC0415
+        e_layer = np.clip(params.layer_f0 * a + dielectric_f90(params.layer_f0) * b, 0.0, 1.0)
+        params.diffuse = np.maximum(params.diffuse - scale(params.layered, e_layer), 0.0).astype(np.float32)
+    e1 = np.maximum(a + b, 1e-3)
+    f90 = params.f90 if params.f90 is not None else np.ones_like(params.f0)
+    f_avg = params.f0 + (f90 - params.f0) * np.float32(1.0 / 21.0)
+    boost = (1.0 + scale(f_avg, (1.0 - e1) / e1)).astype(np.float32)
+    params.f0 = (params.f0 * boost).astype(np.float32)
+    params.f90 = (f90 * boost).astype(np.float32)
+    return params
 
 
 def lobe_params(diffuse, f0, roughness, f90=None):

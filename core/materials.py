@@ -30,7 +30,6 @@ class SceneShading:
         shaders = list(scene.shaders or [])
         self.compiled = [None] * m
         table = bsdf.material_lobes(scene.materials)
-        table.f90 = np.ones_like(table.f0)
         one = WorldGeometry(np.array([[0.0, 0.0, 1.0]], np.float32))
         self.emission = np.array(scene.materials.emission, np.float32, copy=True)
         for i, graph in enumerate(shaders[:m]):
@@ -40,7 +39,7 @@ class SceneShading:
             if shader.uniform:
                 closure = shader.closure(one)
                 row = params_of(closure, 1)
-                for name in ("diffuse", "f0", "alpha", "p_spec", "f90"):
+                for name in ("diffuse", "f0", "alpha", "p_spec", "f90", "layered", "layer_f0"):
                     getattr(table, name)[i] = getattr(row, name)[0]
                 self.emission[i] = closure.get("emission", 1)[0]
             else:
@@ -51,9 +50,13 @@ class SceneShading:
 
 def params_of(closure, n):
     """BSDFParams of a closure spread over n hits."""
-    return bsdf.lobe_params(closure.get("diffuse", n), closure.get("specular", n),
-                            closure.averaged("spec_rough", n, DEFAULT_ROUGHNESS),
-                            closure.get("spec_edge", n))
+    layered = closure.get("layered", n)
+    p = bsdf.lobe_params(closure.get("diffuse", n) + layered, closure.get("specular", n),
+                         closure.averaged("spec_rough", n, DEFAULT_ROUGHNESS),
+                         closure.get("spec_edge", n))
+    p.layered = layered
+    p.layer_f0 = closure.averaged("layer_f0", n, 0.0)
+    return p
 
 
 def shading(scene):
@@ -91,6 +94,8 @@ def surface_params(scene, surf, camera_ray=False):
         scatter(params.diffuse, rows, p.diffuse)
         scatter(params.f0, rows, p.f0)
         scatter(params.f90, rows, p.f90)
+        scatter(params.layered, rows, p.layered)
+        params.layer_f0[rows] = p.layer_f0
         params.alpha[rows] = p.alpha
         params.p_spec[rows] = p.p_spec
         if closure.normal_sum is not None:

@@ -53,7 +53,7 @@ def test_shader_nodes_read(addon):
     assert s.warnings == []
 
     p = row(s, "principled")
-    diffuse, f0, rough = principled_lobes(np.float32([0.2, 0.3, 0.4]), np.float32(0.7), np.float32(0.25),
+    diffuse, f0, rough, layer_f0 = principled_lobes(np.float32([0.2, 0.3, 0.4]), np.float32(0.7), np.float32(0.25),
                                           np.float32(1.45), np.float32(0.6))
     np.testing.assert_allclose(p["diffuse"], diffuse.ravel(), rtol=1e-5)
     np.testing.assert_allclose(p["f0"], f0.ravel(), rtol=1e-5)

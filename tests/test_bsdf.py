@@ -23,11 +23,13 @@ N = 400_000
 HEMISPHERE = spherical_domain(cos_range=(0.0, 1.0))
 
 
-def params(name, n, white=False):
+def params(name, n, white=False, wo=None):
+    """BSDFParams of a material for n rows, seen from wo (as ShadingFrame makes them)."""
     row = dict(MATERIALS[name])
     if white:
         row["base_color"] = (1.0, 1.0, 1.0)
-    return bsdf.bsdf_params(Materials.from_list([row]), np.zeros(n, np.int32))
+    p = bsdf.bsdf_params(Materials.from_list([row]), np.zeros(n, np.int32))
+    return p if wo is None else bsdf.at_view(p, rep(wo, n))
 
 
 def direction(cos_theta, phi=PHI_WO):
@@ -42,20 +44,20 @@ def rep(v, n):
 def pdf_fn(name, wo):
     def fn(w):
         w = np.asarray(w, np.float32)
-        return bsdf.pdf(params(name, len(w)), rep(wo, len(w)), w)
+        return bsdf.pdf(params(name, len(w), wo=wo), rep(wo, len(w)), w)
     return fn
 
 
 def cos_weighted_f(name, wo, white=False):
     def fn(w):
         w = np.asarray(w, np.float32)
-        f = bsdf.evaluate(params(name, len(w), white), rep(wo, len(w)), w)
+        f = bsdf.evaluate(params(name, len(w), white, wo), rep(wo, len(w)), w)
         return f * np.maximum(w[:, 2], 0.0)[:, None]
     return fn
 
 
 def draw(name, wo, rng, n=N, white=False):
-    p = params(name, n, white)
+    p = params(name, n, white, wo)
     wo_b = rep(wo, n)
     u_lobe = rng.random(n, dtype=np.float32)
     u = rng.random((n, 2), dtype=np.float32)
@@ -70,7 +72,9 @@ def test01_params_follow_the_principled_subset():
     assert p.p_spec[lam] == 0 and np.allclose(p.f0[lam], 0) and np.allclose(p.diffuse[lam], [0.8, 0.6, 0.3])
     # Specular 0.5 at IOR 1.5: F0 = ((1.5 - 1) / (1.5 + 1))^2 = 0.04.
     assert np.allclose(p.f0[d02], 0.04, atol=1e-6)
-    assert np.allclose(p.diffuse[d02], 0.96 * np.float32([0.8, 0.6, 0.3]), atol=1e-6)
+    # The whole base colour, under a layer of f0 0.04 (at_view takes the layer's share).
+    assert np.allclose(p.diffuse[d02], [0.8, 0.6, 0.3], atol=1e-6)
+    assert np.allclose(p.layered[d02], [0.8, 0.6, 0.3], atol=1e-6) and np.isclose(p.layer_f0[d02], 0.04)
     assert 0.1 <= p.p_spec[d02] <= 0.9
     assert np.allclose(p.diffuse[m01], 0) and np.allclose(p.f0[m01], [0.9, 0.6, 0.3]) and p.p_spec[m01] == 1
     assert p.alpha[m01] == pytest.approx(0.01)
@@ -154,25 +158,30 @@ def test05_lambert_albedo_is_the_base_colour():
 
 @pytest.mark.parametrize("name", ["lambert", "metal_r0.1", "metal_r0.5"])
 def test06_white_furnace(name):
+    """A white surface reflects all it receives: multiple-scattering energy
+    put back into the GGX lobe (core/microfacet_albedo.py) brings white metals
+    to one, within the accuracy of the albedo table."""
+    # (A 24 x 24 quadrature misses part of the sharp roughness-0.1 lobe.)
+    low = 0.8 if name == "metal_r0.1" else 0.97
     for cos_wo in (1.0, 0.8, 0.5, 0.3, 0.1):
         a = albedo(name, direction(cos_wo), white=True)
-        assert (a <= 1.0 + 1e-4).all()
-        assert (a > 0.5).all()          # and not a BSDF that lost most of its energy
+        assert (a <= 1.0 + 0.015).all() and (a >= low).all(), (cos_wo, a)
 
 
 @pytest.mark.parametrize("name", ["dielectric_r0.2", "dielectric_r0.6"])
 def test07_white_furnace_dielectric_at_normal_incidence(name):
     a = albedo(name, direction(1.0), white=True)
-    assert (0.9 < a).all() and (a <= 1.0 + 1e-4).all()
+    assert (0.97 < a).all() and (a <= 1.0 + 0.015).all()
 
 
-@pytest.mark.xfail(strict=True, reason=(
-    "known limitation: the diffuse base is weighted by (1 - F0), not by one minus the "
-    "specular layer's albedo at wo as in Cycles' Principled BSDF, so a white dielectric "
-    "reflects more than it receives at grazing angles"))
 @pytest.mark.parametrize("name", ["dielectric_r0.2", "dielectric_r0.6"])
 def test08_white_furnace_dielectric_at_grazing_angles(name):
-    assert (albedo(name, direction(0.3), white=True) <= 1.0 + 1e-3).all()
+    """The diffuse base keeps only what the specular layer does not reflect at
+    the viewing angle (Cycles' layering), so a white dielectric neither gains
+    nor loses energy toward grazing views."""
+    for cos_wo in (0.6, 0.3, 0.1):
+        a = albedo(name, direction(cos_wo), white=True)
+        assert (a <= 1.0 + 0.015).all() and (a >= 0.95).all(), (cos_wo, a)
 
 
 @pytest.mark.parametrize("name", NAMES)

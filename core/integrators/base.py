@@ -52,7 +52,9 @@ class ShadingFrame:
         t, b = orthonormal_basis(surf.ns)
         if params.smooth_n is not None:     # normals bent by maps: the smooth one, locally
             params.smooth_n = to_local(params.smooth_n, t, b, surf.ns).astype(np.float32)
-        return ShadingFrame(params, t, b, to_local(surf.wo, t, b, surf.ns))
+        wo_local = to_local(surf.wo, t, b, surf.ns)
+        bsdf.at_view(params, wo_local)
+        return ShadingFrame(params, t, b, wo_local)
 
     def subset(self, index):
         return ShadingFrame(self.params.subset(index), gather(self.t, index), gather(self.b, index),

@@ -5,7 +5,10 @@ closure is a fixed set of lobe weights, summed over every BSDF node the
 graph's Mix and Add Shader nodes reach, so a whole batch of hits is a few
 arrays:
 
-- ``diffuse``: Lambert albedo (Diffuse BSDF, Principled's base layer).
+- ``diffuse``: Lambert albedo (Diffuse BSDF); ``layered``: Lambert albedo
+  under a dielectric specular layer of normal reflectance ``layer_f0``
+  (Principled's base), which keeps what the layer does not reflect at the
+  viewing angle (core/bsdf.py ``at_view``).
 - ``specular``: normal-incidence reflectance of the GGX reflection lobe
   (Glossy BSDF, Principled's metallic and dielectric specular), with
   ``spec_rough`` the weight-averaged roughness of the lobes that fed it:
@@ -29,10 +32,12 @@ stays a handful of numbers until ``Closure.lobes`` spreads it over the hits.
 
 import numpy as np
 
-COLOR_FIELDS = ("diffuse", "specular", "spec_edge", "transmission", "transparent", "translucent",
-                "emission")
-# Scalars summed with a weight and divided by it at the end.
-AVERAGED = {"spec_rough": "spec_w", "trans_rough": "trans_w", "ior": "trans_w"}
+COLOR_FIELDS = ("diffuse", "layered", "specular", "spec_edge", "transmission", "transparent",
+                "translucent", "emission")
+# Scalars summed with a weight and divided by it at the end: name -> (weight, lobe it averages over).
+AVERAGED = {"spec_rough": ("spec_w", "specular"), "trans_rough": ("trans_w", "transmission"),
+            "ior": ("trans_w", "transmission"), "layer_f0": ("layer_w", "layered")}
+BSDF_LOBES = ("diffuse", "layered", "specular", "transmission", "translucent")
 
 
 def _f32(x):
@@ -61,9 +66,8 @@ class Closure:
             v = _f32(v)
             if k in COLOR_FIELDS:
                 c.fields[k] = v * (w[..., None] if w.ndim else w)
-        for k, wk in AVERAGED.items():
+        for k, (wk, source) in AVERAGED.items():
             if k in lobes and lobes[k] is not None:
-                source = "specular" if wk == "spec_w" else "transmission"
                 lobe_w = _weight_of(c.fields.get(source))
                 c.fields[k] = _f32(lobes[k]) * lobe_w
                 c.fields[wk] = lobe_w
@@ -104,7 +108,7 @@ class Closure:
 
     def averaged(self, name, n, default):
         """A weight-averaged scalar (roughness, IOR), ``default`` where no lobe had weight."""
-        w = self.get(AVERAGED[name], n)
+        w = self.get(AVERAGED[name][0], n)
         s = self.get(name, n)
         return np.where(w > 0, s / np.where(w > 0, w, 1), np.float32(default)).astype(np.float32)
 
@@ -130,7 +134,7 @@ def _weight_of(color):
 
 def _total_weight(c):
     total = np.float32(0)
-    for name in ("diffuse", "specular", "transmission", "translucent"):
+    for name in BSDF_LOBES:
         if name in c.fields:
             total = total + _weight_of(c.fields[name])
     return _f32(total)

@@ -22,7 +22,8 @@ The Principled BSDF follows the layering of Cycles' Principled v2
 
 import numpy as np
 
-from .closure import Closure
+from ..microfacet_albedo import dielectric_f90
+from .closure import BSDF_LOBES, Closure
 from .evaluate import f32, node
 
 
@@ -66,15 +67,17 @@ def principled(inp, geom, n, sh):
     f0_d = np.minimum(_f0_from_ior(ior) * 2 * level, 1.0)
     f0_d = _c(f0_d) * spec_tint
     specular = _c(metallic) * base + _c(dielectric) * f0_d
-    diffuse = _c(dielectric * (1 - trans)) * (1 - f0_d) * base
+    diffuse = _c(dielectric * (1 - trans)) * base      # under the specular layer
     transmission = _c(dielectric * trans) * base
     below = 1.0
     if np.any(coat > 0):
         f0_coat = _f0_from_ior(np.maximum(inp.float("Coat IOR", 1.5), 1.0))
         tint = 1 + _c(coat) * (np.clip(inp.color("Coat Tint", (1, 1, 1)), 0, None) - 1)
         below = tint * _c(1 - coat * f0_coat)
-    lobes = Closure.bsdf(1.0, None, diffuse=diffuse * below, specular=specular * below,
-                         spec_edge=np.ones((1, 3), np.float32) * below,
+    lobes = Closure.bsdf(1.0, None, layered=diffuse * below, layer_f0=f0_d.mean(axis=-1),
+                         specular=specular * below,
+                         spec_edge=(_c(metallic) + _c(dielectric) * _c(dielectric_f90(f0_d.mean(axis=-1))))
+                         * np.ones((1, 3), np.float32) * below,
                          spec_rough=rough, transmission=transmission * below,
                          trans_rough=rough, ior=ior)
     if np.any(coat > 0):
@@ -94,7 +97,7 @@ def principled(inp, geom, n, sh):
 def _with_normal(c, normal):
     """The closure with every BSDF lobe using ``normal``."""
     w = np.float32(0)
-    for name in ("diffuse", "specular", "transmission", "translucent"):
+    for name in BSDF_LOBES:
         if name in c.fields:
             w = w + np.abs(c.fields[name]).mean(axis=-1)
     c.normal_sum = normal * f32(w)[..., None] if f32(w).ndim else normal * w
