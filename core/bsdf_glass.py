@@ -19,13 +19,13 @@ Conventions (all arrays per row, directions in the local shading frame):
   glass from air, 1 / 1.5 leaving it (the caller inverts the IOR on back faces).
 - ``alpha`` (N,) = roughness^2, floored at bsdf.ALPHA_MIN here: near-specular
   glass is a very sharp but finite lobe, never a delta, so every sample has a
-  density that eval can recompute (ReSTIR and MIS need that). For the same
-  reason the microfacet geometry keeps eta at least ETA_GAP from 1: an
-  index-matched interface (|eta - 1| < ETA_GAP) is treated as eta = 1 +- ETA_GAP
-  with alpha = ALPHA_MIN, a lobe about 1e-6 rad wide around straight through
-  (Fresnel 2.5e-7 at normal incidence). Its roughness is dropped because an
-  interface between equal media is invisible (Cycles makes it a delta). The
-  transport factor below uses the caller's eta, so eta = 1 passes all light.
+  density that eval can recompute (ReSTIR and MIS need that).
+- Index-matched rows (eta within a factor 1 + ETA_GAP of 1) do not bend light:
+  as eta -> 1 the refraction lobe collapses onto -wo whatever the roughness (an
+  interface between equal media is invisible; Cycles makes it a delta). There
+  the transmitted part is the reflection lobe at ALPHA_MIN turned through the
+  surface (wi.z -> -wi.z), centred on -wo and a few 1e-3 rad wide, with the
+  same (1 - F) weight; F is about 0 (exactly 0 at eta = 1).
 - f excludes the cosine; pdf is the solid-angle density of glass_sample,
   including the choice between reflection (probability F) and refraction.
 
@@ -84,14 +84,12 @@ def _fresnel(cos_i, eta):
 
 
 def _lobe(alpha, eta):
-    """(alpha, eta, eta) of the microfacet geometry and the transport factor:
-    alpha floored at ALPHA_MIN, eta at least ETA_GAP away from 1 (symmetrically
-    for 1 / eta) and then alpha = ALPHA_MIN, and the caller's eta (float64)."""
+    """(alpha, eta, matched) as the lobe uses them: alpha floored at ALPHA_MIN
+    (at ALPHA_MIN on index-matched rows), eta in float64, and the index-matched rows."""
     eta = np.asarray(eta, np.float64)
-    e = np.where(eta >= 1.0, np.maximum(eta, 1.0 + ETA_GAP), np.minimum(eta, 1.0 / (1.0 + ETA_GAP)))
+    matched = (eta < 1.0 + ETA_GAP) & (eta * (1.0 + ETA_GAP) > 1.0)
     a = np.maximum(np.asarray(alpha, np.float32), ALPHA_MIN)
-    a = np.where(e != eta, ALPHA_MIN, a).astype(np.float32)
-    return a, e, eta
+    return np.where(matched, ALPHA_MIN, a).astype(np.float32), eta, matched
 
 
 def _columns(w):
@@ -110,28 +108,32 @@ def glass_eval(wo, wi, alpha, eta, tint, radiance=True):
     microfacet); with the Jacobian J = eta^2 |wi.h| / (wo.h + eta wi.h)^2
         f = (1 - F) D G2 |wo.h| J / (wo.z |wi.z|)   [/ eta^2 if radiance],
         pdf = (1 - F) D_wo(h) J.
+    Index-matched rows refract as they reflect, with wi.z turned over and (1 - F).
     D_wo(h) = G1(wo) (wo.h) D(h) / wo.z is the visible-normal density and F =
     F(wo.h, eta). So f |wi.z| / pdf = tint G2 / G1(wo) [/ eta^2]: at most tint.
     """
-    a, e, eta = _lobe(alpha, eta)
+    a, e, matched = _lobe(alpha, eta)
     ox, oy, oz = _columns(wo)
     ix, iy, iz = _columns(wi)
     refl = iz > 0
     refr = iz < 0
-    # h along wo + k wi, k = 1 (reflection) or eta (refraction), turned to z > 0.
-    k = np.where(refr, e, 1.0)
-    hx, hy, hz = ox + k * ix, oy + k * iy, oz + k * iz
+    bend = refr & ~matched
+    # h along wo + k wi, k = 1 (reflection) or eta (refraction), turned to z > 0;
+    # index-matched refraction as reflection of wi turned back over the surface.
+    k = np.where(bend, e, 1.0)
+    jz = np.where(refr & matched, -iz, iz)
+    hx, hy, hz = ox + k * ix, oy + k * iy, oz + k * jz
     length = np.sqrt(hx * hx + hy * hy + hz * hz)
     s = np.where(hz < 0, -1.0, 1.0) / np.where(length > 0, length, 1.0)
     hx, hy, hz = hx * s, hy * s, hz * s
     cos_o = ox * hx + oy * hy + oz * hz
-    cos_ih = ix * hx + iy * hy + iz * hz
+    cos_ih = ix * hx + iy * hy + jz * hz
     ok = ((oz > COS_MIN) & (np.abs(iz) > COS_MIN) & (length > 0) & (hz > 0) & (cos_o > 0)
-          & np.where(refr, cos_ih < 0, cos_ih > 0))
+          & np.where(bend, cos_ih < 0, cos_ih > 0))
     F = _fresnel(cos_o, e)[0]
     den = cos_o + e * cos_ih
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-        jac = np.where(refr, e * e * np.abs(cos_ih) / (den * den), 0.25 / cos_o)
+        jac = np.where(bend, e * e * np.abs(cos_ih) / (den * den), 0.25 / cos_o)
         d = ggx_d(np.stack([hx, hy, hz], axis=1), a)
         lam_o, lam_i = ggx_lambda(wo, a), ggx_lambda(wi, a)
         common = d * cos_o * jac / oz                   # D_wo(h) J / G1(wo)
@@ -140,7 +142,7 @@ def glass_eval(wo, wi, alpha, eta, tint, radiance=True):
         g2 = 1.0 / (1.0 + lam_o + lam_i)
         fs = share * g2 * common / np.abs(iz)
         if radiance:
-            fs = np.where(refr, fs / (eta * eta), fs)
+            fs = np.where(refr, fs / (e * e), fs)
     ok &= (refl | refr) & np.isfinite(pdf) & np.isfinite(fs) & (pdf > 0)
     pdf = np.where(ok, pdf, 0.0).astype(np.float32)
     fs = np.where(ok, fs, 0.0).astype(np.float32)
@@ -151,13 +153,14 @@ def glass_sample(wo, alpha, eta, tint, u_lobe, u, radiance=True):
     """Draw wi; returns (wi (N, 3), f (N, 3), pdf (N,)), f and pdf as glass_eval's.
 
     h from the visible normals of wo; reflect about h if u_lobe < F(wo . h),
-    else refract through it (Snell's law, wi = (wo.h / eta - cos_t) h - wo / eta).
-    A reflection that ends below the surface or a refraction that ends above
-    it is lost: pdf = 0 and f = 0 (its wi is finite but meaningless). So the
-    density of the kept samples is glass_eval's pdf, whose integral over the
-    sphere is one minus the lost fraction.
+    else refract through it (Snell's law, wi = (wo.h / eta - cos_t) h - wo / eta;
+    index-matched rows reflect and turn wi.z over). A reflection that ends
+    below the surface or a refraction that ends above it is lost: pdf = 0 and
+    f = 0 (its wi is finite but meaningless). So the density of the kept
+    samples is glass_eval's pdf, whose integral over the sphere is one minus
+    the lost fraction.
     """
-    a, e, _ = _lobe(alpha, eta)
+    a, e, matched = _lobe(alpha, eta)
     up = wo[:, 2] > COS_MIN
     wo_s = wo if up.all() else np.where(up[:, None], wo, np.float32([0, 0, 1]))
     h = ggx_sample_visible_normal(wo_s, a, u)
@@ -166,10 +169,12 @@ def glass_sample(wo, alpha, eta, tint, u_lobe, u, radiance=True):
     cos_o = ox * hx + oy * hy + oz * hz
     F, cos_t = _fresnel(cos_o, e)
     refl = np.asarray(u_lobe) < F
+    mirror = refl | matched
     # Reflection: 2 (wo.h) h - wo. Refraction: (wo.h / eta - cos_t) h - wo / eta.
-    c = np.where(refl, 2.0 * cos_o, cos_o / e - cos_t)
-    g = np.where(refl, 1.0, 1.0 / e)
+    c = np.where(mirror, 2.0 * cos_o, cos_o / e - cos_t)
+    g = np.where(mirror, 1.0, 1.0 / e)
     wx, wy, wz = c * hx - g * ox, c * hy - g * oy, c * hz - g * oz
+    wz = np.where(refl | ~matched, wz, -wz)
     length = np.sqrt(wx * wx + wy * wy + wz * wz)
     length = np.where(length > 0, length, 1.0)
     wi = np.stack([wx / length, wy / length, wz / length], axis=1).astype(np.float32)

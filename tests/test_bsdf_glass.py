@@ -153,14 +153,14 @@ def test02_eval_matches_walter(radiance, rng):
     assert np.allclose(f, tint * ref_f[:, None], rtol=2e-4, atol=1e-7)
 
 
-CONFIGS = [(a, e, c) for a in (0.25, 0.02) for e in (1.5, 1 / 1.5) for c in (0.9, 0.5, 0.15)]
+CONFIGS = [(a, e, c) for a in (0.25, 0.02) for e in (1.5, 1 / 1.5) for c in (0.9, 0.5, 0.15)] + [(0.3, 1.0, 0.5)]
 
 
 @pytest.mark.parametrize("alpha,eta,cos_wo", CONFIGS)
 def test03_sample_is_eval_at_its_direction(alpha, eta, cos_wo, rng):
     """f and pdf of a sample are glass_eval's at its wi; its weight f |wi.z| / pdf is
-    tint G2 / G1(wo), over eta^2 when refracted. Samples reflect and refract (unless
-    total internal reflection), and lost ones have f = 0."""
+    tint G2 / G1(wo), over eta^2 when refracted. Samples reflect (unless eta = 1) and
+    refract (unless total internal reflection), and lost ones have f = 0."""
     tint = (0.9, 0.5, 0.2)
     wo, wi, f, pdf = draw(direction(cos_wo), alpha, eta, rng, n=50_000, tint=tint)
     f_e, pdf_e = glass.glass_eval(wo, wi, col(alpha, len(wo)), col(eta, len(wo)), rep(tint, len(wo)))
@@ -169,8 +169,9 @@ def test03_sample_is_eval_at_its_direction(alpha, eta, cos_wo, rng):
     assert np.array_equal(pdf[ok], pdf_e[ok]) and np.array_equal(f[ok], f_e[ok])
     assert (f[~ok] == 0).all()
     refr = wi[:, 2] < 0
-    assert (ok & ~refr).any() and ((ok & refr).any() or (eta < 1 and cos_wo < 0.8))
-    lam = [np.array([lambda_ref(float(z), alpha) for z in np.abs(w[ok, 2])]) for w in (wo, wi)]
+    assert ((ok & ~refr).any() or eta == 1) and ((ok & refr).any() or (eta < 1 and cos_wo < 0.8))
+    a = ALPHA_MIN if eta == 1 else alpha                # index-matched: roughness dropped
+    lam = [np.array([lambda_ref(float(z), a) for z in np.abs(w[ok, 2])]) for w in (wo, wi)]
     expect = (1 + lam[0]) / (1 + lam[0] + lam[1]) / np.where(refr[ok], eta * eta, 1.0)
     assert np.allclose(f[ok] * np.abs(wi[ok, 2:3]) / pdf[ok, None], np.outer(expect, tint), rtol=1e-4)
 
@@ -181,14 +182,16 @@ SPHERE = spherical_domain(cos_range=(-1.0, 1.0))
 
 
 def _refracted(wo, eta):
-    """wo refracted through the macro-surface, or None under total internal reflection."""
+    """wo refracted through the macro-surface, or None under total internal reflection
+    (-wo for index-matched eta, whose lobe does not bend)."""
+    eta = 1.0 if abs(math.log(eta)) < math.log1p(glass.ETA_GAP) else eta
     s2 = (1 - wo[2] ** 2) / eta ** 2
     return None if s2 >= 1 else np.array([-wo[0] / eta, -wo[1] / eta, -math.sqrt(1 - s2)])
 
 
 def _chi2_cases():
     """The sphere in (cos theta, phi) for rough lobes; for sharp ones a log-spaced cap
-    about the mirror and about the refracted direction, each stopping short of the horizon."""
+    about the mirror or the refracted direction, stopping short of the horizon."""
     out = []
     for alpha in (0.25, 0.1):
         for eta in (1.5, 1 / 1.5):
@@ -199,6 +202,8 @@ def _chi2_cases():
             out.append((0.02, eta, c, "mirror"))
             if _refracted(direction(c), eta) is not None:
                 out.append((0.02, eta, c, "refracted"))
+    for eta in (1.0, 1.0005):      # index-matched: the lobe at ALPHA_MIN about -wo
+        out.append((0.5, eta, 0.5, "refracted"))
     return out
 
 
@@ -220,8 +225,8 @@ def test04_sample_matches_pdf_chi2(alpha, eta, cos_wo, which, rng):
     samples = np.where((pdf > 0)[:, None], wi, np.nan)      # lost samples go to the outside cell
 
     def pdf_fn(w):
-        w = np.asarray(w, np.float32)
-        return glass.glass_eval(rep(wo, len(w)), w, col(alpha, len(w)), col(eta, len(w)), rep((1, 1, 1), len(w)))[1]
+        w, n = np.asarray(w, np.float32), len(w)
+        return glass.glass_eval(rep(wo, n), w, col(alpha, n), col(eta, n), rep((1, 1, 1), n))[1]
 
     test = ChiSquareTest(lambda n: samples, pdf_fn, dom, res=res, sample_count=N, test_count=len(CHI2))
     assert test.run()
@@ -250,7 +255,12 @@ def albedo_by_normals(alpha, eta, cos_wo, res=(32, 16)):
         E = integral of (wo.h)+ D(h) / wo.z [F G2(wo, r) [r.z > 0] + (1 - F) G2(wo, t) [t.z < 0]] dh,
     r and t being wo reflected and refracted about h. No Jacobian, no sampler."""
     wo = direction(cos_wo)
-    lam = lambda z: 0.5 * (np.sqrt(1 + alpha * alpha * (1 - z * z) / (z * z)) - 1)   # noqa: E731
+
+    def lam(z):
+        return 0.5 * (np.sqrt(1 + alpha * alpha * (1 - z * z) / (z * z)) - 1)
+
+    def g(z):       # G2(wo, w) for w.z = z; zero on the horizon
+        return np.where(np.abs(z) > 1e-9, 1 / (1 + lam(wo[2]) + lam(np.maximum(np.abs(z), 1e-9))), 0)
 
     def fn(h):
         c = h @ wo
@@ -258,7 +268,6 @@ def albedo_by_normals(alpha, eta, cos_wo, res=(32, 16)):
         r_z = 2 * c * h[:, 2] - wo[2]
         cos_t = np.sqrt(np.maximum(0, 1 - (1 - c * c) / eta ** 2))
         t_z = (c / eta - cos_t) * h[:, 2] - wo[2] / eta
-        g = lambda z: np.where(np.abs(z) > 1e-9, 1 / (1 + lam(wo[2]) + lam(np.maximum(np.abs(z), 1e-9))), 0)  # noqa: E731
         hz2 = h[:, 2] ** 2
         d = np.where(h[:, 2] > 0, alpha ** 2 / (np.pi * (hz2 * (alpha ** 2 - 1) + 1) ** 2), 0)
         return np.maximum(c, 0) * d / wo[2] * (F * g(r_z) * (r_z > 0) + (1 - F) * g(t_z) * (t_z < 0))
@@ -266,8 +275,136 @@ def albedo_by_normals(alpha, eta, cos_wo, res=(32, 16)):
     return integrate(fn, log_spherical_domain((0, 0, 1), max_angle=0.5 * np.pi), res=res)
 
 
-# E = R + eta^2 T by albedo_by_normals at res (64, 64); 1 for a smooth interface, less
-# for rough ones: single-scattering GGX loses what scatters more than once (and Cycles
-# restores it from tables, which this BSDF leaves out).
+# E = R + eta^2 T at cos wo = (1, 0.5, 0.2), from albedo_by_normals at res (160, 128).
+# 1 for a smooth interface, less for rough ones: single-scattering GGX loses the light
+# that would scatter more than once (Cycles restores it from tables; this BSDF does not).
+COS_E = (1.0, 0.5, 0.2)
 ALBEDO = {
+    (0.05, 1.5): (0.99972, 0.99815, 0.98120),
+    (0.05, 1 / 1.5): (0.99735, 0.99141, 0.96003),
+    (0.25, 1.5): (0.99204, 0.96077, 0.91502),
+    (0.25, 1 / 1.5): (0.92924, 0.82708, 0.79355),
+    (0.6, 1.5): (0.95539, 0.86151, 0.80854),
+    (0.6, 1 / 1.5): (0.67647, 0.61700, 0.61882),
 }
+
+
+def split(wi, f, pdf, n):
+    """(R, T, standard errors): reflected and refracted parts of the integral of
+    f |cos| over the sphere, estimated from the samples' weights."""
+    w = weights(wi, f, pdf)
+    refr = wi[:, 2] < 0
+    parts = [np.where(refr, 0, w), np.where(refr, w, 0)]
+    return [p.mean() for p in parts], [p.std() / math.sqrt(n) for p in parts]
+
+
+@pytest.mark.parametrize("radiance", [True, False])
+@pytest.mark.parametrize("eta", [1.5, 1 / 1.5])
+def test05_smooth_limit_splits_by_fresnel(eta, radiance, rng):
+    """At alpha = ALPHA_MIN the interface is nearly smooth: it reflects R = F(cos wo)
+    and refracts T = (1 - F) / eta^2 of the radiance (radiance=True: Veach's
+    radiance scaling) or T = 1 - F (radiance=False: Cycles' and the adjoint
+    convention); so R + eta^2 T = 1, or R + T = 1. Leaving glass (eta = 1 / 1.5) the
+    radiance grows: T = 0.96 x 2.25 at normal incidence. Past the critical angle, R = 1."""
+    n = 200_000
+    for cos_wo in (1.0, 0.7, 0.4, 0.15):
+        _, wi, f, pdf = draw(direction(cos_wo), ALPHA_MIN, eta, rng, n=n, radiance=radiance)
+        (R, T), (sr, st) = split(wi, f, pdf, n)
+        F = fresnel_ref(math.acos(cos_wo), eta)
+        t = (1 - F) / eta ** 2 if radiance else 1 - F
+        assert abs(R - F) < 4.5 * sr + 1e-3 and abs(T - t) < 4.5 * st + 1e-3, (cos_wo, R, F, T, t)
+
+
+@pytest.mark.parametrize("alpha,eta", list(ALBEDO))
+def test06_white_furnace(alpha, eta, rng):
+    """With tint 1, R + eta^2 T of the radiance BSDF and R + T of the adjoint one both
+    equal E of the table: at most 1, close to 1 for smooth-ish glass, and what
+    the quadrature over microfacet normals (no sampler, no Jacobian) gives."""
+    n = 200_000
+    for cos_wo, expect in zip(COS_E, ALBEDO[alpha, eta]):
+        assert albedo_by_normals(alpha, eta, cos_wo) == pytest.approx(expect, abs=3e-4)
+        assert expect <= 1 and (alpha > 0.05 or expect > 0.95)
+        for radiance in (True, False):
+            _, wi, f, pdf = draw(direction(cos_wo), alpha, eta, rng, n=n, radiance=radiance)
+            (R, T), _ = split(wi, f, pdf, n)
+            w = weights(wi, f, pdf) * np.where((wi[:, 2] < 0) & radiance, eta * eta, 1)
+            E, err = w.mean(), w.std() / math.sqrt(n)
+            assert E == pytest.approx(R + (eta * eta if radiance else 1) * T)
+            assert abs(E - expect) < 4.5 * err + 2e-4, (cos_wo, radiance, E, expect, err)
+            assert E <= 1 + 4.5 * err
+
+
+# --- 5. reciprocity -----------------------------------------------------------------------
+
+@pytest.mark.parametrize("radiance", [True, False])
+def test07_reciprocity(radiance, rng):
+    """Swapping wo and wi swaps the media: the caller turns the frame over (z -> -z)
+    and passes 1 / eta. Reflection is symmetric. Refraction with n_wo = 1, n_wi = eta:
+    radiance f(wo, wi) / n_wo^2 = f(wi, wo) / n_wi^2 (Veach 1997, 5.2), i.e.
+    f(wi, wo) = eta^2 f(wo, wi); the adjoint BSDF the other way round. Directions
+    and eta in float64: near a critical angle 1 - F magnifies float32 rounding."""
+    n = 20_000
+    flip = np.array([1.0, 1.0, -1.0])
+
+    def unit64(w):
+        w = w.astype(np.float64)
+        return w / np.sqrt((w * w).sum(axis=1, keepdims=True))
+
+    for eta in (1.5, 1.33, 1 / 1.5):
+        for alpha in (0.3, 0.05):
+            wo, wi = unit64(unit(rng, n, +1)), unit64(unit(rng, n))
+            a, t = col(alpha, n), rep((1, 1, 1), n)
+            f, _ = glass.glass_eval(wo, wi, a, np.full(n, eta), t, radiance)
+            refr = wi[:, 2] < 0
+            wo2 = np.where(refr[:, None], wi * flip, wi)
+            wi2 = np.where(refr[:, None], wo * flip, wo)
+            f2, _ = glass.glass_eval(wo2, wi2, a, np.where(refr, 1 / eta, eta), t, radiance)
+            assert np.array_equal(f[:, 0] > 0, f2[:, 0] > 0)
+            assert (f[refr, 0] > 0).sum() > n / 20 and (f[~refr, 0] > 0).sum() > n / 4
+            k = np.where(refr, eta * eta if radiance else 1 / (eta * eta), 1.0)
+            assert np.allclose(f2[:, 0], k * f[:, 0], rtol=1e-5, atol=1e-8)
+
+
+# --- 6. degenerate input ---------------------------------------------------------------------
+
+def test08_degenerate_input(rng):
+    up, down = np.float32([0, 0, 1]), np.float32([0, 0, -1])
+    grazing = np.float32([1, 0, 0])
+    wo = np.stack([grazing, grazing, -up, up, up, up, up, direction(0.5), direction(0.5)]).astype(np.float32)
+    wi = np.stack([up, down, up, grazing, up, down, down, -direction(0.5), -direction(0.5)]).astype(np.float32)
+    alpha = np.float32([0.3, 0.3, 0.3, 0.3, 0, 0, ALPHA_MIN, 1e-7, 0.5])
+    eta = np.float32([1.5, 1.5, 1.5, 1.5, 1.5, 1.5, 1 / 1.5, 1.0, 1.0])
+    f, pdf = glass.glass_eval(wo, wi, alpha, eta, rep((1, 1, 1), len(wo)))
+    assert np.isfinite(f).all() and np.isfinite(pdf).all()
+    # wo on the horizon or below, wi on the horizon: nothing.
+    assert (f[:4] == 0).all() and (pdf[:4] == 0).all()
+    # The peaks of the sharpest lobes: finite, D(h = z) = 1 / (pi ALPHA_MIN^2) ~ 3e5.
+    assert (pdf[4:9] > 1e3).all() and (f[4:9] > 0).all()
+    # Index-matched (eta = 1), whatever the roughness: -wo is the peak of a lobe at ALPHA_MIN.
+    d_peak = 1 / (math.pi * ALPHA_MIN ** 2)
+    assert pdf[7] == pdf[8] and pdf[7] == pytest.approx(d_peak / (4 * 0.5), rel=1e-2)
+
+    # Sampling: random directions (a third below the horizon), alpha in [0, 1] and eta
+    # around 1, including exactly 1. Everything finite, lost samples zero.
+    n = 100_000
+    wo = unit(rng, n)
+    wo[: n // 3, 2] = np.abs(wo[: n // 3, 2])
+    wo[:100, 2] = 0
+    alpha = rng.random(n, dtype=np.float32) ** 2
+    eta = rng.choice(np.float32([1.0, 1.0005, 1 / 1.0005, 1.5, 1 / 1.5, 2.5, 0.4]), n)
+    wi, f, pdf = glass.glass_sample(wo, alpha, eta, rep((1, 1, 1), n), rng.random(n, dtype=np.float32),
+                                    rng.random((n, 2), dtype=np.float32))
+    assert np.isfinite(wi).all() and np.isfinite(f).all() and np.isfinite(pdf).all()
+    assert (f >= 0).all() and (pdf >= 0).all() and (f[pdf == 0] == 0).all()
+    assert (pdf[wo[:, 2] <= 0] == 0).all() and (pdf > 0).sum() > n / 4
+    f_e, pdf_e = glass.glass_eval(wo, wi, alpha, eta, rep((1, 1, 1), n))
+    assert np.isfinite(f_e).all() and np.isfinite(pdf_e).all()
+
+    # eta = 1 samples go straight through with weight 1 and no reflection, rough or not.
+    for alpha in (0.0, 0.5):
+        wo, wi, f, pdf = draw(direction(0.5), alpha, 1.0, rng, n=20_000, tint=(0.9, 0.5, 0.2))
+        assert (pdf > 0).all() and (wi[:, 2] < 0).all()
+        miss = np.linalg.norm(wi + wo, axis=1)          # GGX at ALPHA_MIN: 1e-3 rad, long tails
+        assert np.median(miss) < 3e-3 and np.quantile(miss, 0.99) < 0.03
+        assert np.abs(np.median(wi + wo, axis=0)).max() < 1e-4
+        assert np.allclose(f * np.abs(wi[:, 2:3]) / pdf[:, None], [0.9, 0.5, 0.2], rtol=1e-4)
