@@ -9,7 +9,7 @@ A Diffuse BSDF node maps to specular = 0 and metallic = 0: pure Lambert, as in
 Cycles. A Glossy BSDF node maps to metallic = 1: pure GGX with Schlick Fresnel.
 """
 
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 
 import numpy as np
 
@@ -33,18 +33,28 @@ class BSDFParams:
     layered: np.ndarray = None   # (N, 3) the part of ``diffuse`` under a dielectric
                                  # specular layer of normal reflectance layer_f0 (N,)
     layer_f0: np.ndarray = None
+    # The glass lobe (core/bsdf_glass.py; None where no row has one): weights of
+    # its reflected and refracted parts (N, 3), IOR (N,), GGX alpha (N,), the
+    # probability of choosing it (N,), and eta (N,): the IOR across the surface
+    # as the ray meets it (inverted on back faces; ShadingFrame sets it).
+    glass_r: np.ndarray = None
+    glass_t: np.ndarray = None
+    ior: np.ndarray = None
+    alpha_g: np.ndarray = None
+    p_glass: np.ndarray = None
+    eta: np.ndarray = None
 
     def subset(self, index):
         index = np.asarray(index)
         if index.dtype == bool:
             index = np.nonzero(index)[0]
         # Row gathers by core/rows.py (a[index] is slow on (N, 3) rows).
-        return BSDFParams(gather(self.diffuse, index), gather(self.f0, index),
-                          np.take(self.alpha, index), np.take(self.p_spec, index),
-                          None if self.f90 is None else gather(self.f90, index),
-                          None if self.smooth_n is None else gather(self.smooth_n, index),
-                          None if self.layered is None else gather(self.layered, index),
-                          None if self.layer_f0 is None else np.take(self.layer_f0, index))
+        return BSDFParams(*(None if v is None else (gather(v, index) if v.ndim == 2 else np.take(v, index))
+                            for v in (getattr(self, f.name) for f in fields(BSDFParams))))
+
+    @property
+    def has_glass(self):
+        return self.p_glass is not None
 
 
 def bsdf_params(materials, material_ids):
@@ -105,21 +115,38 @@ def at_view(params, wo):
     return params
 
 
-def lobe_params(diffuse, f0, roughness, f90=None):
+def lobe_params(diffuse, f0, roughness, f90=None, glass=None):
     """BSDFParams from lobe weights: Lambert albedo (N, 3), GGX f0 (N, 3),
-    roughness (N,), and the reflectance at grazing incidence f90 (N, 3; None: white).
+    roughness (N,), and the reflectance at grazing incidence f90 (N, 3; None:
+    white); glass: (reflection weight (N, 3), refraction weight (N, 3), IOR
+    (N,), roughness (N,)) of a glass lobe, or None.
 
-    The specular lobe is picked in proportion to its share of the luminance,
-    kept within [0.1, 0.9] where both lobes reflect."""
+    Lobes are picked in proportion to their share of the luminance; between
+    diffuse and specular alone the specular share is kept within [0.1, 0.9]."""
     ws = luminance(f0)
     wd = luminance(diffuse)
-    total = ws + wd
-    p_spec = np.where(total > 0, ws / np.where(total > 0, total, 1), 0.0)
-    p_spec = np.where((ws > 0) & (wd > 0), np.clip(p_spec, 0.1, 0.9), p_spec)
+    wg = 0.0
+    if glass is not None:
+        wg = np.maximum(luminance(glass[0]), luminance(glass[1]))
+        if not (wg > 0).any():
+            glass, wg = None, 0.0
+    total = ws + wd + wg
+    safe = np.where(total > 0, total, 1)
+    p_spec = np.where(total > 0, ws / safe, 0.0)
+    p_spec = np.where((ws > 0) & (wd > 0) & ~(wg > 0), np.clip(p_spec, 0.1, 0.9), p_spec)
     alpha = np.maximum(np.asarray(roughness) ** 2, ALPHA_MIN)
-    return BSDFParams(np.ascontiguousarray(diffuse, np.float32), np.ascontiguousarray(f0, np.float32),
-                      np.ascontiguousarray(alpha, np.float32), np.ascontiguousarray(p_spec, np.float32),
-                      None if f90 is None else np.ascontiguousarray(f90, np.float32))
+    p = BSDFParams(np.ascontiguousarray(diffuse, np.float32), np.ascontiguousarray(f0, np.float32),
+                   np.ascontiguousarray(alpha, np.float32), np.ascontiguousarray(p_spec, np.float32),
+                   None if f90 is None else np.ascontiguousarray(f90, np.float32))
+    if glass is not None:
+        n = len(p.alpha)
+        p.glass_r = np.ascontiguousarray(np.broadcast_to(glass[0], (n, 3)), np.float32)
+        p.glass_t = np.ascontiguousarray(np.broadcast_to(glass[1], (n, 3)), np.float32)
+        p.ior = np.array(np.broadcast_to(np.maximum(glass[2], 1.0), (n,)), np.float32)
+        p.alpha_g = np.array(np.maximum(np.broadcast_to(glass[3], (n,)) ** 2, ALPHA_MIN), np.float32)
+        p.p_glass = np.where(total > 0, wg / safe, 0.0).astype(np.float32)
+        p.eta = p.ior.copy()
+    return p
 
 
 # --- GGX ------------------------------------------------------------------
@@ -209,13 +236,16 @@ def _lobes(params, wo, wi, want_f, want_pdf):
     scatters, and not at all when every row has the lobe."""
     wi_up = wi[:, 2] > 0
     p_spec = _p_spec(params, wo)
+    p_glass = _p_glass(params, wo)
     f = p = None
     if want_f:
         f = scale(params.diffuse, wi_up * INV_PI)      # 1 / pi or 0 per row
         if params.smooth_n is not None:
             f = scale(f, bump_shadowing(params.smooth_n, wi))
     if want_pdf:
-        p = ((1.0 - p_spec) * cosine_hemisphere_pdf(wi[:, 2])).astype(np.float32)
+        p = ((1.0 - p_spec - p_glass) * cosine_hemisphere_pdf(wi[:, 2])).astype(np.float32)
+    if params.has_glass:
+        _glass_lobe(params, wo, wi, p_glass, f, p)
     spec = (p_spec > 0) & wi_up
     if not spec.any():
         return f, p
@@ -266,6 +296,32 @@ def bump_shadowing(smooth_n, wi):
     return (g * keep).astype(np.float32)
 
 
+def _p_glass(params, wo):
+    if not params.has_glass:
+        return np.float32(0)
+    return params.p_glass * (wo[:, 2] > 0)
+
+
+def _glass_lobe(params, wo, wi, p_glass, f, p):
+    """Add the glass lobe's f and p_glass x pdf into f and p (in place), on
+    the rows that have one. Cycles' transport convention (no 1 / eta^2 on
+    refraction), so closed glass objects and panes render as in Cycles."""
+    from .bsdf_glass import glass_eval   # noqa: PLC0415
+    rows = np.nonzero(p_glass > 0)[0]
+    if len(rows) == 0:
+        return
+    o, i = gather(wo, rows), gather(wi, rows)
+    ones = np.ones((len(rows), 3), np.float32)
+    gf, gp = glass_eval(o, i, np.take(params.alpha_g, rows), np.take(params.eta, rows), ones,
+                        radiance=False)
+    if f is not None:
+        up = (i[:, 2] > 0)[:, None]
+        tint = np.where(up, gather(params.glass_r, rows), gather(params.glass_t, rows))
+        scatter_add(f, rows, (gf * tint).astype(np.float32))
+    if p is not None:
+        p[rows] = np.take(p, rows) + np.take(p_glass, rows) * gp
+
+
 def evaluate(params, wo, wi):
     """f(wo, wi) as (N, 3). The diffuse lobe needs only wi above the shading
     normal (as Cycles: bent smooth-shaded normals must not blacken surfaces);
@@ -285,7 +341,21 @@ def evaluate_pdf(params, wo, wi):
 def sample(params, wo, u_lobe, u):
     """Draw wi; returns (wi, f, pdf). pdf is 0 where no valid direction was found."""
     wi = square_to_cosine_hemisphere(u)
-    spec = u_lobe < _p_spec(params, wo)
+    p_spec = _p_spec(params, wo)
+    spec = u_lobe < p_spec
+    if params.has_glass:
+        p_glass = _p_glass(params, wo)
+        glass = ~spec & (u_lobe < p_spec + p_glass)
+        if glass.any():
+            from .bsdf_glass import glass_sample   # noqa: PLC0415
+            rows = np.nonzero(glass)[0]
+            u_g = (np.take(u_lobe, rows) - np.take(p_spec, rows)) / np.maximum(np.take(p_glass, rows), 1e-12)
+            wg, _, gp = glass_sample(gather(wo, rows), np.take(params.alpha_g, rows), np.take(params.eta, rows),
+                                     np.ones((len(rows), 3), np.float32), np.clip(u_g, 0, 1 - 1e-7),
+                                     gather(u, rows), radiance=False)
+            # A sample the glass lobe discarded (a reflection below the surface,
+            # a refraction above it) ends the path: a zero direction has pdf 0.
+            scatter(wi, rows, scale(wg, (gp > 0).astype(np.float32)))
     if spec.any():
         rows = np.nonzero(spec)[0]
         wos = gather(wo, rows)

@@ -36,8 +36,8 @@ class SceneShading:
             if graph is None:
                 continue
             shader = CompiledShader(graph, scene.images, warn)
-            if shader.uniform:
-                closure = shader.closure(one)
+            closure = shader.closure(one) if shader.uniform else None
+            if closure is not None and not _needs_hits(closure):
                 row = params_of(closure, 1)
                 for name in ("diffuse", "f0", "alpha", "p_spec", "f90", "layered", "layer_f0"):
                     getattr(table, name)[i] = getattr(row, name)[0]
@@ -51,9 +51,13 @@ class SceneShading:
 def params_of(closure, n):
     """BSDFParams of a closure spread over n hits."""
     layered = closure.get("layered", n)
+    glass = None
+    if "transmission" in closure.fields or "trans_refl" in closure.fields:
+        glass = (closure.get("trans_refl", n), closure.get("transmission", n),
+                 closure.averaged("ior", n, 1.5), closure.averaged("trans_rough", n, 0.0))
     p = bsdf.lobe_params(closure.get("diffuse", n) + layered, closure.get("specular", n),
                          closure.averaged("spec_rough", n, DEFAULT_ROUGHNESS),
-                         closure.get("spec_edge", n))
+                         closure.get("spec_edge", n), glass)
     p.layered = layered
     p.layer_f0 = closure.averaged("layer_f0", n, 0.0)
     return p
@@ -96,6 +100,8 @@ def surface_params(scene, surf, camera_ray=False):
         scatter(params.f90, rows, p.f90)
         scatter(params.layered, rows, p.layered)
         params.layer_f0[rows] = p.layer_f0
+        if p.has_glass:
+            _add_glass(params, rows, p)
         params.alpha[rows] = p.alpha
         params.p_spec[rows] = p.p_spec
         if closure.normal_sum is not None:
@@ -110,6 +116,28 @@ def surface_params(scene, surf, camera_ray=False):
                 params.smooth_n = surf.ns.copy()
             scatter(surf.ns, rows, ns)
     return params
+
+
+def _needs_hits(closure):
+    """Glass lobes (their IOR turns on back faces) stay per hit, like textures."""
+    return any(k in closure.fields for k in ("transmission", "trans_refl"))
+
+
+def _add_glass(params, rows, p):
+    """Scatter the glass lobe of rows' parameters p into params, creating the
+    glass fields (zero elsewhere) on first use."""
+    n = len(params.alpha)
+    if not params.has_glass:
+        params.glass_r = np.zeros((n, 3), np.float32)
+        params.glass_t = np.zeros((n, 3), np.float32)
+        params.ior = np.ones(n, np.float32)
+        params.alpha_g = np.ones(n, np.float32)
+        params.p_glass = np.zeros(n, np.float32)
+        params.eta = np.ones(n, np.float32)
+    scatter(params.glass_r, rows, p.glass_r)
+    scatter(params.glass_t, rows, p.glass_t)
+    for name in ("ior", "alpha_g", "p_glass", "eta", "p_spec"):
+        getattr(params, name)[rows] = getattr(p, name)
 
 
 def valid_reflection_normal(ng, wo, n):

@@ -214,6 +214,27 @@ def emission(scene):
     _assign(["CeilingLight"], mat)
 
 
+def glass(scene):
+    """Glass BSDF (rough) and Principled transmission, seen against the walls."""
+    mat, tree, out = _new_material("Glass")
+    g = tree.nodes.new("ShaderNodeBsdfGlass")
+    g.inputs["Roughness"].default_value = 0.15
+    g.inputs["IOR"].default_value = 1.45
+    g.inputs["Color"].default_value = (0.9, 0.95, 1.0, 1)
+    tree.links.new(g.outputs[0], out.inputs["Surface"])
+    _assign(["TallBox"], mat)
+    mat2, tree2, out2 = _new_material("Transmissive")
+    p = tree2.nodes.new("ShaderNodeBsdfPrincipled")
+    p.inputs["Base Color"].default_value = (0.9, 0.6, 0.3, 1)
+    p.inputs["Transmission Weight"].default_value = 1.0
+    p.inputs["Roughness"].default_value = 0.3
+    tree2.links.new(p.outputs[0], out2.inputs["Surface"])
+    _assign(["ShortBox"], mat2)
+    import bpy
+    for name in ("TallBox", "ShortBox"):     # off the floor: no faces shared with it
+        bpy.data.objects[name].location.z += 0.002
+
+
 def hdri(scene, name="sunset.exr"):
     """An HDRI world (Environment Texture through Mapping), the box opened to it."""
     import bpy
@@ -236,4 +257,4 @@ def hdri(scene, name="sunset.exr"):
 
 
 FAMILIES = {"image": image, "procedural": procedural, "shaders": shaders, "normals": normals,
-            "attributes": attributes, "emission": emission, "hdri": hdri}
+            "attributes": attributes, "emission": emission, "glass": glass, "hdri": hdri}

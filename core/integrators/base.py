@@ -54,6 +54,8 @@ class ShadingFrame:
             params.smooth_n = to_local(params.smooth_n, t, b, surf.ns).astype(np.float32)
         wo_local = to_local(surf.wo, t, b, surf.ns)
         bsdf.at_view(params, wo_local)
+        if params.has_glass:    # the IOR as the ray meets it: inverted leaving the object
+            params.eta = np.where(surf.front, params.ior, 1.0 / params.ior).astype(np.float32)
         return ShadingFrame(params, t, b, wo_local)
 
     def subset(self, index):
@@ -96,8 +98,10 @@ def direct_light(ctx, surf, frame, seeds, bounce, mis=True, strategy_pdf=None, u
     else:
         f = bsdf.evaluate(frame.params, frame.wo_local, wi_local)
         pdf_b = strategy_pdf(wi_local) if mis else None
-    cos = np.maximum(wi_local[:, 2], 0.0)
-    above = dot(ls.wi, surf.ng) > 0       # reflection only: the light must be on wo's side
+    # The light must lie on the side of the surface the lobe sends it to:
+    # geometric and shading normals agree (only glass lobes refract).
+    cos = np.abs(wi_local[:, 2])
+    above = (dot(ls.wi, surf.ng) > 0) == (wi_local[:, 2] > 0)
     if mis:
         w = np.where(ls.delta, 1.0, power_heuristic(ls.pdf, pdf_b))
     else:
@@ -144,8 +148,9 @@ def sample_continuation(ctx, surf, frame, seeds, bounce):
     u = samplers.uniform2(seeds, samplers.bounce_dim(bounce, samplers.D_BSDF_UV))
     wi_local, f, pdf = bsdf.sample(frame.params, frame.wo_local, u_lobe, u)
     wi = frame.world(surf, wi_local)
-    cos = np.maximum(wi_local[:, 2], 0.0)
-    valid = (pdf > 0) & (dot(wi, surf.ng) > 0)
+    cos = np.abs(wi_local[:, 2])
+    # Reflections stay above the surface, refractions (glass) go below it.
+    valid = (pdf > 0) & ((dot(wi, surf.ng) > 0) == (wi_local[:, 2] > 0))
     with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
         weight = scale(f, cos / np.where(pdf > 0, pdf, 1.0))
     valid &= rows_finite(weight) & (row_max(weight) > 0)

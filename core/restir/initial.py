@@ -96,7 +96,7 @@ def _world_split(lights, params):
 def _source_pdf(params, wo_local, wi_local, sampling):
     """Density of the initial direction sampler: the BSDF's own for glossy
     materials, else the chosen hemisphere warp."""
-    glossy = params.p_spec > 0
+    glossy = _bsdf_sampled(params)
     if sampling == UNIFORM:
         base = uniform_hemisphere_pdf(wi_local[:, 2])
     else:
@@ -104,6 +104,15 @@ def _source_pdf(params, wo_local, wi_local, sampling):
     if glossy.any():
         base = np.where(glossy, bsdf.pdf(params, wo_local, wi_local), base)
     return base.astype(np.float32)
+
+
+def _bsdf_sampled(params):
+    """Visible points whose sample direction comes from their BSDF: glossy
+    lobes, and glass, whose light comes through it (below the surface)."""
+    glossy = params.p_spec > 0
+    if params.has_glass:
+        glossy = glossy | (params.p_glass > 0)
+    return glossy
 
 
 def world_distance(scene):
@@ -134,17 +143,19 @@ def initial_samples(ctx, gb, seed, frame, sample, max_bounces, sampling=COSINE, 
     u_lobe = samplers.uniform(seeds, samplers.bounce_dim(0, samplers.D_LOBE))
     u = samplers.uniform2(seeds, samplers.bounce_dim(0, samplers.D_BSDF_UV))
     wi_l = square_to_uniform_hemisphere(u) if sampling == UNIFORM else square_to_cosine_hemisphere(u)
-    glossy = params.p_spec > 0
+    glossy = _bsdf_sampled(params)
     if glossy.any():
         wi_b, _, _ = bsdf.sample(params.subset(glossy), wo_l[glossy], u_lobe[glossy], u[glossy])
         wi_l[glossy] = wi_b
     pdf = _source_pdf(params, wo_l, wi_l, sampling)
     wi = frame_sh.world(surf, wi_l)
     f = bsdf.evaluate(params, wo_l, wi_l)
+    # Reservoirs resample for the diffuse lobe (cosine above the surface);
+    # the sample's own weight also carries light refracted by glass.
     cos = np.maximum(wi_l[:, 2], 0.0)
-    ok = (pdf > 0) & (dot(wi, surf.ng) > 0)
+    ok = (pdf > 0) & ((dot(wi, surf.ng) > 0) == (wi_l[:, 2] > 0))
     with np.errstate(invalid="ignore", divide="ignore"):
-        weight = scale(f, cos / np.where(pdf > 0, pdf, 1.0))
+        weight = scale(f, np.abs(wi_l[:, 2]) / np.where(pdf > 0, pdf, 1.0))
     weight = np.nan_to_num(weight, nan=0.0, posinf=0.0, neginf=0.0)
     weight = scale(weight, ok.astype(np.float32)).astype(np.float32)
 

@@ -15,8 +15,10 @@ arrays:
   two glossy lobes of different roughness become one of their mean roughness;
   ``spec_edge`` its reflectance at grazing incidence (white for Fresnel
   lobes, the colour for a Glossy BSDF, which Cycles gives no Fresnel).
-- ``transmission``: tint of the GGX refraction lobe (Glass, Refraction,
-  Principled transmission) with weight-averaged ``ior`` and ``trans_rough``.
+- ``transmission`` and ``trans_refl``: weights of the refracted and the
+  reflected part of the glass lobe (Glass, Refraction, Principled
+  transmission; core/bsdf_glass.py), with weight-averaged ``ior`` and
+  ``trans_rough``.
 - ``transparent``: the share of light passing straight through (Transparent
   BSDF, Principled Alpha).
 - ``translucent``: Lambert transmission (Translucent BSDF).
@@ -32,8 +34,8 @@ stays a handful of numbers until ``Closure.lobes`` spreads it over the hits.
 
 import numpy as np
 
-COLOR_FIELDS = ("diffuse", "layered", "specular", "spec_edge", "transmission", "transparent",
-                "translucent", "emission")
+COLOR_FIELDS = ("diffuse", "layered", "specular", "spec_edge", "transmission", "trans_refl",
+                "transparent", "translucent", "emission")
 # Scalars summed with a weight and divided by it at the end: name -> (weight, lobe it averages over).
 AVERAGED = {"spec_rough": ("spec_w", "specular"), "trans_rough": ("trans_w", "transmission"),
             "ior": ("trans_w", "transmission"), "layer_f0": ("layer_w", "layered")}

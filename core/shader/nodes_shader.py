@@ -66,9 +66,13 @@ def principled(inp, geom, n, sh):
     dielectric = 1 - metallic
     f0_d = np.minimum(_f0_from_ior(ior) * 2 * level, 1.0)
     f0_d = _c(f0_d) * spec_tint
-    specular = _c(metallic) * base + _c(dielectric) * f0_d
+    specular = _c(metallic) * base + _c(dielectric * (1 - trans)) * f0_d
     diffuse = _c(dielectric * (1 - trans)) * base      # under the specular layer
-    transmission = _c(dielectric * trans) * base
+    # The glass part reflects by its own Fresnel (tinted like the specular
+    # layer) and refracts tinted by sqrt(base colour): through a closed
+    # object, in and out, the base colour (Cycles' Principled convention).
+    transmission = _c(dielectric * trans) * np.sqrt(base)
+    trans_refl = _c(dielectric * trans) * spec_tint
     below = 1.0
     if np.any(coat > 0):
         f0_coat = _f0_from_ior(np.maximum(inp.float("Coat IOR", 1.5), 1.0))
@@ -79,6 +83,7 @@ def principled(inp, geom, n, sh):
                          spec_edge=(_c(metallic) + _c(dielectric) * _c(dielectric_f90(f0_d.mean(axis=-1))))
                          * np.ones((1, 3), np.float32) * below,
                          spec_rough=rough, transmission=transmission * below,
+                         trans_refl=trans_refl * below,
                          trans_rough=rough, ior=ior)
     if np.any(coat > 0):
         lobes = lobes + Closure.bsdf(1.0, None, specular=_c(coat * f0_coat) * np.ones(3, np.float32),
@@ -128,8 +133,7 @@ def glass_bsdf(inp, geom, n, sh):
     color = np.clip(inp.color("Color", (1, 1, 1)), 0, None)
     ior = np.maximum(inp.float("IOR", 1.5), 1.0)
     rough = np.clip(inp.float("Roughness", 0.0), 0, 1)
-    return {"BSDF": _bsdf(inp, geom, specular=color * _c(_f0_from_ior(ior)), spec_edge=color, spec_rough=rough,
-                          transmission=color, trans_rough=rough, ior=ior)}
+    return {"BSDF": _bsdf(inp, geom, transmission=color, trans_refl=color, trans_rough=rough, ior=ior)}
 
 
 @node("BSDF_REFRACTION")
