@@ -120,7 +120,8 @@ def surface_params(scene, surf, camera_ray=False):
 
 def _needs_hits(closure):
     """Glass lobes (their IOR turns on back faces) stay per hit, like textures."""
-    return any(k in closure.fields for k in ("transmission", "trans_refl"))
+    return any(k in closure.fields and bool((closure.fields[k] > 0).any())
+               for k in ("transmission", "trans_refl"))
 
 
 def _add_glass(params, rows, p):
