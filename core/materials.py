@@ -46,10 +46,28 @@ class SceneShading:
                 self.compiled[i] = shader
         self.table = table
         self.varying = [i for i, s in enumerate(self.compiled) if s is not None]
+        self.transparent_ids = set()
+        self.transparent_row = np.zeros(m, np.float32)     # uniform materials' pass probability
+        for i, graph in enumerate(shaders[:m]):
+            if graph is None:
+                continue
+            if self.compiled[i] is not None:
+                if _may_be_transparent(graph):
+                    self.transparent_ids.add(i)
+            else:
+                t = _pass_probability(CompiledShader(graph, scene.images).closure(one), 1)[0]
+                if t > 0:
+                    self.transparent_ids.add(i)
+                    self.transparent_row[i] = t
 
 
 def params_of(closure, n):
-    """BSDFParams of a closure spread over n hits."""
+    """BSDFParams of a closure spread over n hits. Where the closure is partly
+    transparent, the lobes are those of a ray that stopped there: divided by
+    the share that does not pass (core/transparency.py)."""
+    t = _pass_probability(closure, n)
+    if (t > 0).any():
+        closure = closure.scaled(1.0 / np.maximum(1.0 - t, 1e-3))
     layered = closure.get("layered", n)
     glass = None
     if "transmission" in closure.fields or "trans_refl" in closure.fields:
@@ -116,6 +134,40 @@ def surface_params(scene, surf, camera_ray=False):
                 params.smooth_n = surf.ns.copy()
             scatter(surf.ns, rows, ns)
     return params
+
+
+def _pass_probability(closure, n):
+    """(n,) share of light passing straight through: the transparent colour's mean."""
+    if "transparent" not in closure.fields:
+        return np.zeros(n, np.float32)
+    return np.clip(closure.get("transparent", n).mean(axis=1), 0.0, 1.0).astype(np.float32)
+
+
+def _may_be_transparent(graph):
+    """Whether a graph evaluated per hit can leave a transparent share."""
+    for node in graph.nodes:
+        if node.kind == "BSDF_TRANSPARENT":
+            return True
+        if node.kind == "BSDF_PRINCIPLED":
+            alpha = node.inputs.get("Alpha", 1.0)
+            if not isinstance(alpha, (int, float)) or alpha < 1.0:
+                return True
+    return False
+
+
+def transparency(scene, surf):
+    """(N,) probability that a ray passes the surface at hits ``surf``."""
+    sh = shading(scene)
+    ids = surf.material
+    t = np.take(sh.transparent_row, ids)
+    for m in sh.varying:
+        if m not in sh.transparent_ids:
+            continue
+        rows = np.nonzero(ids == m)[0]
+        if len(rows):
+            closure = sh.compiled[m].closure(SurfaceGeometry(scene, surf.subset(rows)))
+            t[rows] = _pass_probability(closure, len(rows))
+    return t
 
 
 def _needs_hits(closure):

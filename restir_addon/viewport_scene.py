@@ -3,6 +3,7 @@ scene between two frames (ViewportSession in viewport.py)."""
 
 import numpy as np
 
+from ..core import transparency
 from ..core.dynamic_accel import DynamicAccel
 from ..core.integrators.base import RAY_EPS_RELATIVE, RenderContext
 from ..core.lights import LightSet
@@ -97,5 +98,5 @@ class SceneApplier:
         self._scene = scene
         if self._workers is None:
             self._workers = Workers(self.threads)
-        self._ctx = RenderContext(scene, self._accel, lights, eps, self._workers)
+        self._ctx = RenderContext(scene, transparency.wrap(self._accel, scene), lights, eps, self._workers)
 

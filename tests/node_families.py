@@ -235,6 +235,35 @@ def glass(scene):
         bpy.data.objects[name].location.z += 0.002
 
 
+def alpha(scene):
+    """An alpha-clipped card (checker holes through Principled Alpha) casting a
+    patterned shadow, and a box half transparent through a Mix with Transparent."""
+    import bpy
+    mat, tree, out = _new_material("Cutout")
+    coords = tree.nodes.new("ShaderNodeTexCoord")
+    checker = tree.nodes.new("ShaderNodeTexChecker")
+    checker.inputs["Scale"].default_value = 4.0
+    tree.links.new(coords.outputs["UV"], checker.inputs["Vector"])
+    p = tree.nodes.new("ShaderNodeBsdfPrincipled")
+    p.inputs["Base Color"].default_value = (0.2, 0.7, 0.2, 1)
+    tree.links.new(checker.outputs["Fac"], p.inputs["Alpha"])
+    tree.links.new(p.outputs[0], out.inputs["Surface"])
+    bpy.ops.mesh.primitive_plane_add(size=1.0, location=(0.3, -0.3, 1.3), rotation=(0.3, 0.0, 0.4))
+    card = bpy.context.object
+    card.data.materials.append(mat)
+    mat2, tree2, out2 = _new_material("HalfTransparent")
+    d = tree2.nodes.new("ShaderNodeBsdfDiffuse")
+    d.inputs["Color"].default_value = (0.8, 0.3, 0.3, 1)
+    t = tree2.nodes.new("ShaderNodeBsdfTransparent")
+    mix = tree2.nodes.new("ShaderNodeMixShader")
+    mix.inputs["Fac"].default_value = 0.5
+    tree2.links.new(d.outputs[0], mix.inputs[1])
+    tree2.links.new(t.outputs[0], mix.inputs[2])
+    tree2.links.new(mix.outputs[0], out2.inputs["Surface"])
+    _assign(["TallBox"], mat2)
+    bpy.data.objects["TallBox"].location.z += 0.002    # no face shared with the floor
+
+
 def hdri(scene, name="sunset.exr"):
     """An HDRI world (Environment Texture through Mapping), the box opened to it."""
     import bpy
@@ -257,4 +286,5 @@ def hdri(scene, name="sunset.exr"):
 
 
 FAMILIES = {"image": image, "procedural": procedural, "shaders": shaders, "normals": normals,
-            "attributes": attributes, "emission": emission, "glass": glass, "hdri": hdri}
+            "attributes": attributes, "emission": emission, "glass": glass, "alpha": alpha,
+            "hdri": hdri}

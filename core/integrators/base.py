@@ -5,7 +5,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .. import bsdf, materials, samplers
+from .. import bsdf, materials, samplers, transparency
 from ..accel import Accel, offset_origins
 from ..lights import INF_DIST, LightSet
 from ..parallel import SERIAL, Workers
@@ -27,8 +27,8 @@ class RenderContext:
     @staticmethod
     def build(scene, threads=None):
         eps = RAY_EPS_RELATIVE * scene.extent()
-        return RenderContext(scene, Accel.from_scene(scene, threads), LightSet(scene), eps,
-                             Workers(threads))
+        accel = transparency.wrap(Accel.from_scene(scene, threads), scene)
+        return RenderContext(scene, accel, LightSet(scene), eps, Workers(threads))
 
     def close(self):
         self.accel.close()

@@ -1,0 +1,111 @@
+"""Transparent surfaces (Transparent BSDF, Principled Alpha): rays pass through.
+
+A hit on a material that can be transparent lets the ray through with the
+probability of its transparent share t (the mean of the closure's transparent
+colour at that hit): the ray continues from just behind the surface, up to
+MAX_TRANSPARENT surfaces, as Cycles' transparent bounces do. A ray that
+stops there sees the surface's other lobes divided by 1 - t
+(core/materials.py), so the expectation is Cycles' mix of the two. Shadow
+rays pass the same way, so an alpha-clipped leaf casts a leaf-shaped shadow
+and a half-transparent pane lets half the light through on average.
+
+The choice is made with a hash of the triangle, the distance along the ray
+and the surface count: deterministic (a path re-traced with its seed finds
+the same surfaces, as ReSTIR's validation needs) yet uncorrelated between
+rays. ``TransparentAccel`` wraps an acceleration structure and is used only
+for scenes that have such materials; others trace as before.
+"""
+
+import numpy as np
+
+from .interaction import surface_hits
+
+MAX_TRANSPARENT = 8
+_STEP = np.float32(1e-4)     # relative step past a surface, times the scene extent
+
+
+def _hash_uniform(prim, t, salt):
+    """Uniforms in [0, 1) from triangle ids, hit distances and a salt."""
+    h = prim.astype(np.uint32) * np.uint32(0x9E3779B1)
+    h ^= np.ascontiguousarray(t, np.float32).view(np.uint32) * np.uint32(0x85EBCA77)
+    h ^= np.uint32((salt * 0xC2B2AE3D) & 0xFFFFFFFF)
+    h ^= h >> np.uint32(16)
+    h *= np.uint32(0x7FEB352D)
+    h ^= h >> np.uint32(15)
+    h *= np.uint32(0x846CA68B)
+    h ^= h >> np.uint32(16)
+    return (h >> np.uint32(8)).astype(np.float32) * np.float32(1.0 / (1 << 24))
+
+
+class TransparentAccel:
+    """An acceleration structure whose queries pass transparent surfaces
+    stochastically (see the module notes); everything else is the wrapped one's."""
+
+    def __init__(self, inner, scene, transparent_triangles, pass_probability):
+        self.inner = inner
+        self.scene = scene
+        self.flag = transparent_triangles          # (T,) bool
+        self.pass_probability = pass_probability   # fn(scene, surf) -> (N,)
+        self.step = _STEP * np.float32(scene.extent())
+
+    def __getattr__(self, name):
+        return getattr(self.inner, name)
+
+    def intersect_closest(self, origins, directions, tmax=None):
+        o = np.ascontiguousarray(origins, np.float32).reshape(-1, 3)
+        d = np.ascontiguousarray(directions, np.float32).reshape(-1, 3)
+        hits = self.inner.intersect_closest(o, d, tmax)
+        if not len(o):
+            return hits
+        limit = None if tmax is None else np.array(np.broadcast_to(np.asarray(tmax, np.float32), (len(o),)))
+        travelled = np.zeros(len(o), np.float32)
+        rows = np.arange(len(o))        # rays still moving: the rest stopped for good
+        for k in range(MAX_TRANSPARENT):
+            rows = rows[hits.hit[rows] & np.take(self.flag, np.maximum(hits.prim[rows], 0))]
+            if len(rows) == 0:
+                break
+            go = self._passes(o, d, hits, rows, k)
+            rows = rows[go]
+            if len(rows) == 0:
+                break
+            travelled[rows] = hits.t[rows] + self.step       # hits.t: from the first origin
+            start = o[rows] + d[rows] * travelled[rows][:, None]
+            rest = None if limit is None else np.maximum(limit[rows] - travelled[rows], 1e-30)
+            again = self.inner.intersect_closest(start, d[rows], rest)
+            hits.prim[rows] = again.prim
+            hits.u[rows], hits.v[rows] = again.u, again.v
+            hits.t[rows] = np.where(again.prim >= 0, again.t + travelled[rows], np.inf)
+        return hits
+
+    def _passes(self, o, d, hits, rows, k):
+        """Which of the hit rows go through their surface."""
+        sub = type(hits)(hits.t[rows], hits.prim[rows], hits.u[rows], hits.v[rows])
+        surf, _ = surface_hits(self.scene, o[rows], d[rows], sub)
+        p = self.pass_probability(self.scene, surf)
+        u = _hash_uniform(hits.prim[rows], hits.t[rows], k + 1)
+        return u < p
+
+    def occluded(self, origins, directions, tmax):
+        blocked = self.inner.occluded(origins, directions, tmax)
+        rows = np.nonzero(blocked)[0]
+        if len(rows) == 0:
+            return blocked
+        o = np.ascontiguousarray(origins, np.float32).reshape(-1, 3)[rows]
+        d = np.ascontiguousarray(directions, np.float32).reshape(-1, 3)[rows]
+        limit = np.array(np.broadcast_to(np.asarray(tmax, np.float32), (len(blocked),)))[rows]
+        hits = self.intersect_closest(o, d, limit)
+        blocked[rows] = hits.hit & (hits.t < limit)
+        return blocked
+
+
+def wrap(accel, scene):
+    """accel, wrapped in a TransparentAccel when the scene has materials
+    that can be transparent."""
+    from .materials import shading, transparency   # noqa: PLC0415
+    sh = shading(scene)
+    if not sh.transparent_ids or scene.triangle_count == 0:
+        return accel
+    flag = np.isin(scene.material_ids, np.fromiter(sh.transparent_ids, np.int32))
+    if not flag.any():
+        return accel
+    return TransparentAccel(accel, scene, flag, transparency)
