@@ -294,7 +294,9 @@ def test_light_normalize_off_and_exposure(addon):
                                    err_msg=name)
 
 
-def test_light_temperature_and_spread_warn(addon):
+def test_light_temperature_and_spread(addon):
+    """Colour temperature tints the light (a black body of luminance 1, as the
+    Blackbody node); a spread below 180 degrees warns, once per light."""
     import bpy
     scene = fresh()
     add_light("narrow", "AREA", spread=math.radians(60))
@@ -314,9 +316,13 @@ def test_light_temperature_and_spread_warn(addon):
     warm_rows = [i for i, n in enumerate(s.lights.names) if n == "warm"]
     np.testing.assert_allclose(sorted(s.lights.position[warm_rows].tolist()),
                                [[0, 0, 1], [2, 0, 1], [4, 0, 1]], atol=1e-6)
-    assert len([w for w in s.warnings if "warm" in w and "temperature" in w]) == 1, s.warnings
+    from core.shader.nodes_spectrum import blackbody_rec709
+    tint = blackbody_rec709(np.float32(3000.0)).ravel()
+    warm_power = s.lights.power[warm_rows[0]]
+    np.testing.assert_allclose(warm_power / warm_power.sum(), tint / tint.sum(), rtol=1e-5)
+    assert warm_power[0] > 1.5 * warm_power[2]          # warm: red over blue
     assert len([w for w in s.warnings if "narrow" in w and "spread" in w]) == 1, s.warnings
-    assert len(s.warnings) == 2, s.warnings
+    assert len(s.warnings) == 1, s.warnings
 
 
 # ---------------------------------------------------------------- world

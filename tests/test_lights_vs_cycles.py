@@ -1,4 +1,5 @@
-"""Spot, sun, emissive Principled mesh and world lighting against Cycles.
+"""Spot (also with colour temperature and a light node tree), sun, emissive
+Principled mesh and world lighting against Cycles.
 
 A floor with two boxes (Diffuse BSDF) is built in code and lit by one source at
 a time; both engines render it twice with independent seeds. As in
@@ -72,6 +73,14 @@ def _scene(source):
     elif source == "sun":
         _light("Sun", "SUN", (0, 0, 5), rotation=(math.radians(30), 0, math.radians(20)),
                energy=3.0, angle=math.radians(5))
+    elif source == "warm_spot":
+        # Colour temperature and a light node tree (Emission colour x strength).
+        spot = _light("Spot", "SPOT", (0.2, 0.1, 4.5), energy=1000.0, spot_size=math.radians(60),
+                      spot_blend=0.3, shadow_soft_size=0.1, use_temperature=True, temperature=3200.0)
+        spot.data.use_nodes = True
+        emission = next(n for n in spot.data.node_tree.nodes if n.type == "EMISSION")
+        emission.inputs["Strength"].default_value = 2.0
+        emission.inputs["Color"].default_value = (0.9, 1.0, 0.8, 1)
     elif source == "emitter":
         mat = bpy.data.materials.new("Glow")
         p = mat.node_tree.nodes["Principled BSDF"]
@@ -94,7 +103,7 @@ def _scene(source):
     return scene
 
 
-@pytest.mark.parametrize("source", ["spot", "sun", "emitter", "world"])
+@pytest.mark.parametrize("source", ["spot", "warm_spot", "sun", "emitter", "world"])
 def test_lights_match_cycles(addon, source):
     r = compare_with_cycles(_scene(source), SAMPLES, BOUNCES, BLOCK)
     assert np.isfinite(r["ours"]).all()

@@ -2,6 +2,8 @@
 
 import numpy as np
 
+from ...core.shader.nodes_spectrum import blackbody_rec709
+
 from ...core.scene import (LIGHT_AREA, LIGHT_POINT, LIGHT_SPOT, LIGHT_SUN, SHAPE_DISK,
                            SHAPE_ELLIPSE, SHAPE_RECTANGLE, SHAPE_SQUARE)
 
@@ -48,10 +50,30 @@ def light_row(light_object, matrix, warn):
         if spread < np.pi - 1e-4:
             warn(f"Light '{name}': area light spread below 180 degrees is not supported")
     if getattr(light, "use_temperature", False):
-        warn(f"Light '{name}': colour temperature is not supported; using its colour")
+        row["power"] = row["power"] * blackbody_rec709(np.float32(light.temperature)).ravel()
+    if getattr(light, "use_nodes", False) and light.node_tree is not None:
+        row["power"] = row["power"] * _node_emission(light, warn)
     if not getattr(light, "normalize", True):
         row["power"] = row["power"] * _unnormalized_factor(row)
     return row
+
+
+def _node_emission(light, warn):
+    """The colour x strength a light's node tree emits (Cycles multiplies the
+    light's power by it): its Emission node, evaluated once. Textures in a
+    light's nodes vary over the light, which is not modelled: a warning, and
+    the value they give at the light's centre."""
+    from ...core.shader import CompiledShader, WorldGeometry   # noqa: PLC0415
+    from .node_graph import translate                           # noqa: PLC0415
+    graph = translate(light.node_tree, ("OUTPUT_LIGHT",), None, light.name)
+    if graph.output is None:
+        return np.ones(3)
+    shader = CompiledShader(graph, {}, lambda text: warn(f"Light '{light.name}': {text}"))
+    if not shader.uniform:
+        warn(f"Light '{light.name}': textures in its nodes are not supported; using their value "
+             f"at one point")
+    closure = shader.closure(WorldGeometry(np.float32([[0.0, 0.0, 1.0]])))
+    return np.asarray(closure.get("emission", 1)[0], np.float64)
 
 
 def _unnormalized_factor(row):
