@@ -3,6 +3,7 @@
 import numpy as np
 
 from ...core.shader.nodes_spectrum import blackbody_rec709
+from .node_graph import translate
 
 from ...core.scene import (LIGHT_AREA, LIGHT_POINT, LIGHT_SPOT, LIGHT_SUN, SHAPE_DISK,
                            SHAPE_ELLIPSE, SHAPE_RECTANGLE, SHAPE_SQUARE)
@@ -64,7 +65,6 @@ def _node_emission(light, warn):
     light's nodes vary over the light, which is not modelled: a warning, and
     the value they give at the light's centre."""
     from ...core.shader import CompiledShader, WorldGeometry   # noqa: PLC0415
-    from .node_graph import translate                           # noqa: PLC0415
     graph = translate(light.node_tree, ("OUTPUT_LIGHT",), None, light.name)
     if graph.output is None:
         return np.ones(3)

@@ -6,15 +6,10 @@ a neutral placeholder the graph overrides; only row 0, the default for faces
 without a material, is used as is (Cycles' default surface: grey diffuse).
 """
 
-import bpy
+from .images import ImageCache
+from .node_graph import material_graph
 
 NEUTRAL = {"name": "neutral", "base_color": (0.8, 0.8, 0.8), "roughness": 0.5, "specular": 0.5}
-
-
-def uses_nodes(datablock):
-    """Node-based shading: always in Blender 5 (where use_nodes is deprecated),
-    the datablock's own switch before."""
-    return bpy.app.version >= (5, 0, 0) or datablock.use_nodes
 
 
 class MaterialTable:
@@ -22,7 +17,6 @@ class MaterialTable:
     graphs, their images (an ImageCache) and the corner data they read."""
 
     def __init__(self, warn, images=None):
-        from .images import ImageCache      # noqa: PLC0415 (bpy-side module)
         self.warn = warn
         self.images = images if images is not None else ImageCache(warn)
         self.rows = [dict(NEUTRAL)]
@@ -40,7 +34,6 @@ class MaterialTable:
         return self.index[key]
 
     def _graph(self, mat):
-        from .node_graph import material_graph   # noqa: PLC0415
         graph = material_graph(mat, self.images)
         for text in graph.warnings:
             self.warn(f"Material '{mat.name}': {text}")

@@ -40,8 +40,7 @@ from collections import namedtuple
 
 from ...core.shader.graph import Link, Node, ShaderGraph
 
-from .materials import uses_nodes
-from .node_values import COLOR, FLOAT, SHADER, VECTOR, convert, node_props, plain, zero
+from .node_values import COLOR, FLOAT, SHADER, VECTOR, convert, node_props, plain, uses_nodes, zero
 
 _GROUPS = ("GROUP", "CUSTOM GROUP")
 _PROCEDURAL = frozenset(("TEX_BRICK", "TEX_CHECKER", "TEX_GABOR", "TEX_GRADIENT", "TEX_MAGIC",
@@ -58,31 +57,30 @@ def material_graph(material, images=None):
 
     A material without a node tree renders, as in Cycles, as a Diffuse BSDF of
     its viewport colour. None gives an empty graph (no output)."""
-    if material is None:
-        return ShaderGraph(nodes=[])
-    tree = material.node_tree if uses_nodes(material) else None
-    if tree is None:
-        graph = ShaderGraph(nodes=[], name=material.name)
-        diffuse = Node("BSDF_DIFFUSE", {"Color": plain(material.diffuse_color, COLOR), "Roughness": 0.0},
-                       name="Diffuse")
-        graph.output = Link(graph.add(diffuse), "BSDF")
-        return graph
-    return translate(tree, ("OUTPUT_MATERIAL",), images, material.name)
+    fallback = None if material is None else Node(
+        "BSDF_DIFFUSE", {"Color": plain(material.diffuse_color, COLOR), "Roughness": 0.0}, name="Diffuse")
+    return _graph_of(material, ("OUTPUT_MATERIAL",), fallback, "BSDF", images)
 
 
 def world_graph(world, images=None):
     """The graph behind a world's active World Output's Surface; a world without
     nodes is a Background of its colour. None gives an empty graph (black)."""
-    if world is None:
+    fallback = None if world is None else Node(
+        "BACKGROUND", {"Color": plain(world.color, COLOR), "Strength": 1.0}, name="Background")
+    return _graph_of(world, ("OUTPUT_WORLD",), fallback, "Background", images)
+
+
+def _graph_of(datablock, output_types, fallback, socket, images):
+    """translate() of a datablock's tree, or the one-node ``fallback`` graph
+    (output ``socket``) where it has no tree."""
+    if datablock is None:
         return ShaderGraph(nodes=[])
-    tree = world.node_tree if uses_nodes(world) else None
+    tree = datablock.node_tree if uses_nodes(datablock) else None
     if tree is None:
-        graph = ShaderGraph(nodes=[], name=world.name)
-        background = Node("BACKGROUND", {"Color": plain(world.color, COLOR), "Strength": 1.0},
-                          name="Background")
-        graph.output = Link(graph.add(background), "Background")
+        graph = ShaderGraph(nodes=[], name=datablock.name)
+        graph.output = Link(graph.add(fallback), socket)
         return graph
-    return translate(tree, ("OUTPUT_WORLD",), images, world.name)
+    return translate(tree, output_types, images, datablock.name)
 
 
 def translate(tree, output_types=("OUTPUT_MATERIAL",), images=None, name=""):

@@ -171,3 +171,9 @@ def curve_tables(mapping, rgb):
     if rgb:                             # Blender keeps R, G, B, C
         tables = tables[3:] + tables[:3]
     return {"curves": tables, "range": (float(lo), float(hi)), "extend": mapping.extend}
+
+
+def uses_nodes(datablock):
+    """Node-based shading: always in Blender 5 (where use_nodes is deprecated),
+    the datablock's own switch before."""
+    return bpy.app.version >= (5, 0, 0) or datablock.use_nodes

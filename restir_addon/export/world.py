@@ -1,6 +1,7 @@
 """The world: its node graph (node_graph.py) as a core Environment light."""
 
 from ...core.shader.world import world_environment
+from .node_graph import world_graph
 
 
 def export_world(world, images, warn):
@@ -8,7 +9,6 @@ def export_world(world, images, warn):
     and a function building its Environment (None for a black world; building
     an importance map evaluates the graph over the whole sphere, so the
     viewport builds it only when the signature changed)."""
-    from .node_graph import world_graph    # noqa: PLC0415
     graph = world_graph(world, images)
     name = world.name if world is not None else ""
     for text in graph.warnings:
