@@ -102,7 +102,9 @@ class Accel:
         futures = [self._pool.submit(fn, a, b) for a, b in zip(bounds[:-1], bounds[1:])]
         return [f.result() for f in futures]
 
-    def intersect_closest(self, origins, directions, tmax=None):
+    def intersect_closest(self, origins, directions, tmax=None, camera=False):
+        """Closest hits (RayHits). camera: the rays come from the camera (for
+        wrappers that hide objects from camera rays; ignored here)."""
         o, d, dist, bad = _prepare(origins, directions, tmax)
         n = len(o)
         if self._scene is None or n == 0:

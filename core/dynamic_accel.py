@@ -207,7 +207,7 @@ class DynamicAccel:
         if self.interrupt is not None and self.interrupt():
             raise TraceInterrupted()
 
-    def intersect_closest(self, origins, directions, tmax=None):
+    def intersect_closest(self, origins, directions, tmax=None, camera=False):
         self.poll()
         t0 = time.perf_counter()
         o = np.asarray(origins, np.float32).reshape(-1, 3)

@@ -170,6 +170,9 @@ class Scene:
     images: dict = field(default_factory=dict)
     corner_data: dict = field(default_factory=dict)
     object_info: dict = field(default_factory=dict)
+    # Blender's ray visibility per object id: (O, 3) bool for camera rays,
+    # shadow rays and every other ray (Diffuse); None: visible to all.
+    ray_visibility: np.ndarray = None
 
     @property
     def triangle_count(self):

@@ -1,4 +1,6 @@
-"""Transparent surfaces (Transparent BSDF, Principled Alpha): rays pass through.
+"""Surfaces rays pass through: transparent materials (Transparent BSDF,
+Principled Alpha) and objects hidden from some rays (Blender's ray visibility:
+camera, shadow, and diffuse for every other ray).
 
 A hit on a material that can be transparent lets the ray through with the
 probability of its transparent share t (the mean of the closure's transparent
@@ -9,11 +11,14 @@ stops there sees the surface's other lobes divided by 1 - t
 rays pass the same way, so an alpha-clipped leaf casts a leaf-shaped shadow
 and a half-transparent pane lets half the light through on average.
 
-The choice is made with a hash of the triangle, the distance along the ray
-and the surface count: deterministic (a path re-traced with its seed finds
+The choice is made with a hash of the triangle, the point on it, the
+distance along the ray and the surface count: deterministic (a path re-traced with its seed finds
 the same surfaces, as ReSTIR's validation needs) yet uncorrelated between
-rays. ``TransparentAccel`` wraps an acceleration structure and is used only
-for scenes that have such materials; others trace as before.
+rays. An object hidden from a kind of ray is passed by every ray of that
+kind: camera rays (Camera visibility), shadow rays (Shadow), the other rays
+of paths and ReSTIR's reconnections (Diffuse). ``TransparentAccel`` wraps an
+acceleration structure and is used only for scenes that have such materials
+or objects; others trace as before.
 """
 
 import numpy as np
@@ -24,10 +29,15 @@ MAX_TRANSPARENT = 8
 _STEP = np.float32(1e-4)     # relative step past a surface, times the scene extent
 
 
-def _hash_uniform(prim, t, salt):
-    """Uniforms in [0, 1) from triangle ids, hit distances and a salt."""
+def _hash_uniform(prim, t, salt, u=None, v=None):
+    """Uniforms in [0, 1) from triangle ids, hit distances, the hits'
+    barycentrics (so parallel rays at one distance differ) and a salt."""
     h = prim.astype(np.uint32) * np.uint32(0x9E3779B1)
     h ^= np.ascontiguousarray(t, np.float32).view(np.uint32) * np.uint32(0x85EBCA77)
+    for i, x in enumerate((u, v)):
+        if x is not None:
+            h ^= np.ascontiguousarray(x, np.float32).view(np.uint32) * np.uint32((0x27D4EB2F, 0x165667B1)[i])
+            h ^= h >> np.uint32(13)
     h ^= np.uint32((salt * 0xC2B2AE3D) & 0xFFFFFFFF)
     h ^= h >> np.uint32(16)
     h *= np.uint32(0x7FEB352D)
@@ -41,30 +51,41 @@ class TransparentAccel:
     """An acceleration structure whose queries pass transparent surfaces
     stochastically (see the module notes); everything else is the wrapped one's."""
 
-    def __init__(self, inner, scene, transparent_triangles, pass_probability):
+    def __init__(self, inner, scene, transparent_triangles, pass_probability, hidden=None):
         self.inner = inner
         self.scene = scene
         self.flag = transparent_triangles          # (T,) bool
         self.pass_probability = pass_probability   # fn(scene, surf) -> (N,)
+        # (T,) bool per kind of ray: triangles of objects hidden from it.
+        none = np.zeros(len(transparent_triangles), bool)
+        self.hidden = {kind: none for kind in ("camera", "shadow", "other")}
+        self.hidden.update(hidden or {})
         self.step = _STEP * np.float32(scene.extent())
 
     def __getattr__(self, name):
         return getattr(self.inner, name)
 
-    def intersect_closest(self, origins, directions, tmax=None):
+    def intersect_closest(self, origins, directions, tmax=None, camera=False):
+        return self._closest(origins, directions, tmax, self.hidden["camera" if camera else "other"])
+
+    def _closest(self, origins, directions, tmax, hidden):
         o = np.ascontiguousarray(origins, np.float32).reshape(-1, 3)
         d = np.ascontiguousarray(directions, np.float32).reshape(-1, 3)
         hits = self.inner.intersect_closest(o, d, tmax)
+        stop_flag = self.flag | hidden
         if not len(o):
             return hits
         limit = None if tmax is None else np.array(np.broadcast_to(np.asarray(tmax, np.float32), (len(o),)))
         travelled = np.zeros(len(o), np.float32)
         rows = np.arange(len(o))        # rays still moving: the rest stopped for good
         for k in range(MAX_TRANSPARENT):
-            rows = rows[hits.hit[rows] & np.take(self.flag, np.maximum(hits.prim[rows], 0))]
+            rows = rows[hits.hit[rows] & np.take(stop_flag, np.maximum(hits.prim[rows], 0))]
             if len(rows) == 0:
                 break
-            go = self._passes(o, d, hits, rows, k)
+            go = np.take(hidden, hits.prim[rows])
+            if not go.all():
+                maybe = np.nonzero(~go)[0]
+                go[maybe] = self._passes(o, d, hits, rows[maybe], k)
             rows = rows[go]
             if len(rows) == 0:
                 break
@@ -82,7 +103,7 @@ class TransparentAccel:
         sub = type(hits)(hits.t[rows], hits.prim[rows], hits.u[rows], hits.v[rows])
         surf, _ = surface_hits(self.scene, o[rows], d[rows], sub)
         p = self.pass_probability(self.scene, surf)
-        u = _hash_uniform(hits.prim[rows], hits.t[rows], k + 1)
+        u = _hash_uniform(hits.prim[rows], hits.t[rows], k + 1, hits.u[rows], hits.v[rows])
         return u < p
 
     def occluded(self, origins, directions, tmax):
@@ -93,19 +114,27 @@ class TransparentAccel:
         o = np.ascontiguousarray(origins, np.float32).reshape(-1, 3)[rows]
         d = np.ascontiguousarray(directions, np.float32).reshape(-1, 3)[rows]
         limit = np.array(np.broadcast_to(np.asarray(tmax, np.float32), (len(blocked),)))[rows]
-        hits = self.intersect_closest(o, d, limit)
+        hits = self._closest(o, d, limit, self.hidden["shadow"])
         blocked[rows] = hits.hit & (hits.t < limit)
         return blocked
 
 
 def wrap(accel, scene):
-    """accel, wrapped in a TransparentAccel when the scene has materials
-    that can be transparent."""
+    """accel, wrapped in a TransparentAccel when the scene has materials that
+    can be transparent or objects hidden from some rays
+    (``scene.ray_visibility``: (O, 3) bool, camera / shadow / other rays)."""
     from .materials import shading, transparency   # noqa: PLC0415
+    if scene.triangle_count == 0:
+        return accel
     sh = shading(scene)
-    if not sh.transparent_ids or scene.triangle_count == 0:
+    flag = np.zeros(scene.triangle_count, bool)
+    if sh.transparent_ids:
+        flag = np.isin(scene.material_ids, np.fromiter(sh.transparent_ids, np.int32))
+    hidden = {}
+    vis = getattr(scene, "ray_visibility", None)
+    if vis is not None and len(vis) and not np.asarray(vis).all():
+        per_tri = np.take(np.asarray(vis, bool), scene.object_ids, axis=0)
+        hidden = {kind: ~per_tri[:, i] for i, kind in enumerate(("camera", "shadow", "other"))}
+    if not flag.any() and not any(h.any() for h in hidden.values()):
         return accel
-    flag = np.isin(scene.material_ids, np.fromiter(sh.transparent_ids, np.int32))
-    if not flag.any():
-        return accel
-    return TransparentAccel(accel, scene, flag, transparency)
+    return TransparentAccel(accel, scene, flag, transparency, hidden)

@@ -94,7 +94,7 @@ def _trace_rows(ctx, seed, frame, pixel_filter, jitter, start, stop):
         seeds = samplers.path_seeds(seed, frame, pix, 0xC0FFEE)
         xy += pixel_filter.offsets(samplers.uniform2(seeds, samplers.DIM_CAMERA))
     o, d, tmax = generate_rays(scene.camera, w, h, xy)
-    hits = ctx.accel.intersect_closest(o, d, tmax)
+    hits = ctx.accel.intersect_closest(o, d, tmax, camera=True)
     emission = ctx.lights.emitted_along(o, d, np.minimum(hits.t, tmax))
     miss = np.nonzero(~hits.hit)[0]
     if len(miss) and ctx.lights.environment is not None:

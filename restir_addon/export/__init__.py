@@ -89,7 +89,7 @@ def export_scene(depsgraph, width=None, height=None):
     verts, tris, normals, uvs, mids, oids, light_rows, corners = [], [], [], [], [], [], [], []
     offset = 0
     object_index = {}           # instance key -> object id
-    object_matrices, object_colors = [], []
+    object_matrices, object_colors, visibility = [], [], []
     for inst in depsgraph.object_instances:
         obj = inst.object
         if obj.type == "LIGHT":
@@ -118,6 +118,9 @@ def export_scene(depsgraph, width=None, height=None):
             object_index[key] = len(object_index)
             object_matrices.append(np.array(inst.matrix_world, np.float32))
             object_colors.append(tuple(obj.color))
+            visibility.append((bool(getattr(obj, "visible_camera", True)),
+                               bool(getattr(obj, "visible_shadow", True)),
+                               bool(getattr(obj, "visible_diffuse", True))))
         oids.append(np.full(len(mesh.triangles), object_index[key], np.int32))
         offset += len(pos)
 
@@ -149,6 +152,8 @@ def export_scene(depsgraph, width=None, height=None):
                          "Alpha": np.asarray([c[3] for c in object_colors], np.float32),
                          "Random": np.asarray([_object_random(k) for k in object_index], np.float32)}
     shading(scene)      # compiles the graphs now: their warnings join the export's
+    if visibility and not all(all(v) for v in visibility):
+        scene.ray_visibility = np.asarray(visibility, bool)
     scene.warnings = warn.items + scene.warnings
     scene.object_keys = list(object_index)
     scene.object_names = [key[0] for key in object_index]
