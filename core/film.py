@@ -56,7 +56,7 @@ class Film:
 def to_rgba(rgb, alpha=1.0):
     """(H, W, 3) -> (H, W, 4) float32 with non-finite values replaced by 0."""
     rgb = np.nan_to_num(np.asarray(rgb, np.float32), nan=0.0, posinf=0.0, neginf=0.0)
-    a = np.full(rgb.shape[:2] + (1,), alpha, np.float32)
+    a = np.broadcast_to(np.asarray(alpha, np.float32), rgb.shape[:2] + (1,))
     return np.concatenate([rgb, a], axis=2)
 
 

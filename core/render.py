@@ -54,6 +54,7 @@ def render_frame(ctx, settings, frame=0, on_sample=None, should_stop=None):
         depth = np.zeros(n, np.float32)
         normal = np.zeros((n, 3), np.float32)
         albedo = np.zeros((n, 3), np.float32)
+        alpha = np.zeros(n, np.float32)
         for a in range(0, n, CHUNK_PIXELS):
             if should_stop is not None and should_stop():
                 return film
@@ -62,7 +63,8 @@ def render_frame(ctx, settings, frame=0, on_sample=None, should_stop=None):
                                     pixel_filter, a, a + chunk)
             rows = slice(a, a + chunk)
             color[rows], depth[rows], normal[rows], albedo[rows] = res.color, res.depth, res.normal, res.albedo
-        film.add(color, depth=depth, normal=normal, albedo=albedo)
+            alpha[rows] = res.alpha
+        film.add(color, depth=depth, normal=normal, albedo=albedo, alpha=alpha)
         if on_sample is not None:
             on_sample(film, time.perf_counter() - start)
     return film

@@ -173,6 +173,9 @@ class Scene:
     # Blender's ray visibility per object id: (O, 3) bool for camera rays,
     # shadow rays and every other ray (Diffuse); None: visible to all.
     ray_visibility: np.ndarray = None
+    # Film > Transparent: the world seen directly is left out and the image
+    # gets an alpha of the pixels' coverage by geometry.
+    film_transparent: bool = False
 
     @property
     def triangle_count(self):

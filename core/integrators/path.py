@@ -96,6 +96,7 @@ class PassResult:
     depth: np.ndarray       # (P,) view-axis depth, 1e10 where nothing was hit
     normal: np.ndarray      # (P, 3) world shading normal facing the camera (0 on misses)
     albedo: np.ndarray      # (P, 3) diffuse + specular albedo (denoising albedo)
+    alpha: np.ndarray = None  # (P,) 1 where the camera ray met geometry (Film > Transparent)
 
 
 def camera_pass(ctx, width, height, seed, frame, sample, max_bounces, pixel_filter, pixels=None):
@@ -111,7 +112,7 @@ def camera_pass(ctx, width, height, seed, frame, sample, max_bounces, pixel_filt
 
     color = ctx.lights.emitted_along(o, d, np.minimum(hits.t, tmax))
     miss = np.nonzero(~hits.hit)[0]
-    if len(miss) and ctx.lights.environment is not None:
+    if len(miss) and ctx.lights.environment is not None and not scene.film_transparent:
         scatter_add(color, miss, ctx.lights.world_radiance(gather(d, miss)))
     depth = np.full(n, 1e10, np.float32)
     normal = np.zeros((n, 3), np.float32)
@@ -127,7 +128,7 @@ def camera_pass(ctx, width, height, seed, frame, sample, max_bounces, pixel_filt
         scatter(normal, idx, surf.ns)
         scatter(albedo, idx, np.clip(shading.params.diffuse + shading.params.f0, 0.0, 1.0))
     np.nan_to_num(color, copy=False, nan=0.0, posinf=0.0, neginf=0.0)
-    return PassResult(color, depth, normal, albedo)
+    return PassResult(color, depth, normal, albedo, hits.hit.astype(np.float32))
 
 
 def mean_luminance(color):

@@ -72,6 +72,7 @@ class FrameResult:
     M: np.ndarray           # (P,) spatial reservoir M
     W: np.ndarray           # (P,) spatial reservoir W
     history_found: float    # fraction of visible pixels with accepted temporal history
+    alpha: np.ndarray = None  # (P,) coverage by geometry (accumulated; Film > Transparent)
 
 
 class ReSTIRGI:
@@ -263,10 +264,12 @@ class ReSTIRGI:
             elif forget_old:
                 restart(prev_acc, MOVING_CAP)
             acc = accumulate(prev_acc, acc_pix if prev_acc is not None else None,
-                             direct_total, indirect, gb.albedo, gb.n, settings.accumulate)
+                             direct_total, indirect, gb.albedo, gb.n, settings.accumulate,
+                             gb.valid.astype(np.float32))
             direct_total, indirect, albedo, normal = acc.direct, acc.indirect, acc.albedo, acc.normal
+            alpha = acc.alpha
         else:
-            albedo, normal = gb.albedo, gb.n
+            albedo, normal, alpha = gb.albedo, gb.n, gb.valid.astype(np.float32)
         color = direct_total + indirect
 
         self.history = FrameHistory(
@@ -281,7 +284,7 @@ class ReSTIRGI:
         self.last_timings = timings
         found = float((prev_pix[gb.index] >= 0).mean()) if len(gb.index) else 0.0
         return FrameResult(color, direct_total, indirect, gb.depth, normal, albedo,
-                           spatial.M.copy(), spatial.W.copy(), found)
+                           spatial.M.copy(), spatial.W.copy(), found, alpha.copy())
 
 
 def _signature(scene):

@@ -34,8 +34,8 @@ STILL = 1 << 30             # cap for a still image: the plain mean of every fra
 @dataclass
 class Accumulation:
     """Running means per pixel (full-image rows) and the frames each holds,
-    packed in one (P, 13) array so a history read is one gather per tap."""
-    data: np.ndarray        # (P, 13) float32: direct, indirect, albedo, normal, count
+    packed in one (P, 14) array so a history read is one gather per tap."""
+    data: np.ndarray        # (P, 14) float32: direct, indirect, albedo, normal, count, alpha
 
     @property
     def direct(self):
@@ -58,6 +58,11 @@ class Accumulation:
     def count(self):
         """Frames in the mean (fractional after interpolated reads)."""
         return self.data[:, 12]
+
+    @property
+    def alpha(self):
+        """Mean coverage by geometry (Film > Transparent's alpha)."""
+        return self.data[:, 13]
 
     @property
     def nbytes(self):
@@ -225,13 +230,14 @@ def _catmull_rom(t):
             0.5 * (t3 - t2))
 
 
-def accumulate(prev, footprint, direct, indirect, albedo, normal, cap):
+def accumulate(prev, footprint, direct, indirect, albedo, normal, cap, alpha=1.0):
     """This frame's Accumulation: the history over ``footprint`` (rows of the
     part) blended with this frame's values, over at most ``cap`` frames.
     prev: last frame's Accumulation (whole image) or None."""
     n = len(direct)
-    new = np.empty((n, 13), np.float32)
+    new = np.empty((n, 14), np.float32)
     new[:, 0:3], new[:, 3:6], new[:, 6:9], new[:, 9:12], new[:, 12] = direct, indirect, albedo, normal, 1.0
+    new[:, 13] = alpha
     if prev is None or cap <= 1 or footprint is None:
         return Accumulation(new)
     wts = footprint.weights

@@ -97,7 +97,7 @@ def _trace_rows(ctx, seed, frame, pixel_filter, jitter, start, stop):
     hits = ctx.accel.intersect_closest(o, d, tmax, camera=True)
     emission = ctx.lights.emitted_along(o, d, np.minimum(hits.t, tmax))
     miss = np.nonzero(~hits.hit)[0]
-    if len(miss) and ctx.lights.environment is not None:
+    if len(miss) and ctx.lights.environment is not None and not scene.film_transparent:
         scatter_add(emission, miss, ctx.lights.world_radiance(gather(d, miss)))
     surf, idx = surface_hits(scene, o, d, hits)
     valid = np.zeros(n, bool)

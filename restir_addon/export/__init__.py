@@ -146,6 +146,7 @@ def export_scene(depsgraph, width=None, height=None):
         corner_data=_corner_data(corners, tris),
     )
     scene.environment = world
+    scene.film_transparent = bool(getattr(bscene.render, "film_transparent", False))
     scene.shaders = materials.graphs
     scene.images = materials.images.images
     scene.object_info = {"Color": np.asarray([c[:3] for c in object_colors] or np.zeros((0, 3)), np.float32),

@@ -1,0 +1,38 @@
+"""Film > Transparent: the world seen directly is left out and Combined's
+alpha is each pixel's coverage by geometry, in every mode; the world still
+lights the scene."""
+
+import numpy as np
+import pytest
+
+from test_addon_render import MODES, _FakeEngine, add_mesh, camera, fresh, rect, world
+
+
+def render(addon):
+    """Combined (H, W, 4) of a final render through the engine's code."""
+    import bpy
+    engine = _FakeEngine(["Combined", "Depth", "Normal", "Denoising Albedo"])
+    engine.is_animation = False
+    addon.restir_addon.final.render(engine, bpy.context.evaluated_depsgraph_get())
+    assert not [m for k, m in engine.log if k == "ERROR"], engine.log
+    return engine.pixels["Combined"].reshape(16, 16, 4)
+
+
+@pytest.mark.parametrize("mode", MODES)
+def test_transparent_film_alpha_is_coverage(addon, mode):
+    scene = fresh(16, 16, samples=4, mode=mode)
+    scene.render.film_transparent = True
+    camera()
+    world((0.5, 0.5, 0.5))
+    add_mesh("Half", *rect(-10, 0, -10, 10))         # covers the left half of the view
+    rgba = render(addon)
+    assert np.isfinite(rgba).all()
+    left, right = rgba[:, :6], rgba[:, 10:]
+    assert np.allclose(left[..., 3], 1.0) and np.allclose(right[..., 3], 0.0)
+    assert np.allclose(right[..., :3], 0.0)                   # no world seen directly
+    assert (left[..., :3].mean() > 0.1)                         # but it lights the plane
+    edge = rgba[:, 7:9, 3]
+    assert ((edge > 0.0) & (edge < 1.0)).any()                  # filtered coverage at the edge
+    scene.render.film_transparent = False
+    rgba = render(addon)
+    assert np.allclose(rgba[..., 3], 1.0) and np.allclose(rgba[:, 10:, :3], 0.5, atol=1e-3)
