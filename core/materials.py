@@ -48,17 +48,26 @@ class SceneShading:
         self.varying = [i for i, s in enumerate(self.compiled) if s is not None]
         self.transparent_ids = set()
         self.transparent_row = np.zeros(m, np.float32)     # uniform materials' pass probability
+        self.holdout_ids = set()
+        self.holdout_row = np.zeros(m, np.float32)         # uniform materials' holdout share
         for i, graph in enumerate(shaders[:m]):
             if graph is None:
                 continue
             if self.compiled[i] is not None:
                 if _may_be_transparent(graph):
                     self.transparent_ids.add(i)
+                if any(node.kind == "HOLDOUT" for node in graph.nodes):
+                    self.holdout_ids.add(i)
             else:
-                t = _pass_probability(CompiledShader(graph, scene.images).closure(one), 1)[0]
+                closure = CompiledShader(graph, scene.images).closure(one)
+                t = _pass_probability(closure, 1)[0]
                 if t > 0:
                     self.transparent_ids.add(i)
                     self.transparent_row[i] = t
+                h = float(np.clip(closure.get("holdout", 1)[0], 0, 1))
+                if h > 0:
+                    self.holdout_ids.add(i)
+                    self.holdout_row[i] = h
 
 
 def params_of(closure, n):
@@ -168,6 +177,34 @@ def transparency(scene, surf):
             closure = sh.compiled[m].closure(SurfaceGeometry(scene, surf.subset(rows)))
             t[rows] = _pass_probability(closure, len(rows))
     return t
+
+
+def holdout(scene, surf):
+    """(N,) share of the pixel a Holdout closure cuts out at camera hits ``surf``."""
+    sh = shading(scene)
+    ids = surf.material
+    h = np.take(sh.holdout_row, ids)
+    for m in sh.varying:
+        if m not in sh.holdout_ids:
+            continue
+        rows = np.nonzero(ids == m)[0]
+        if len(rows):
+            closure = sh.compiled[m].closure(SurfaceGeometry(scene, surf.subset(rows), camera_ray=True))
+            h[rows] = np.clip(closure.get("holdout", len(rows)), 0.0, 1.0)
+    return h
+
+
+def camera_alpha(scene, n, index, surf):
+    """(n,) alpha of camera samples: coverage by geometry with Film >
+    Transparent (else 1), less what Holdout closures cut out, and the colour
+    factor (n,) the holdout leaves (index: rows of the hits ``surf``)."""
+    hit = np.zeros(n, np.float32)
+    hit[index] = 1.0
+    keep = np.ones(n, np.float32)
+    if shading(scene).holdout_ids and len(index):
+        keep[index] = 1.0 - holdout(scene, surf)
+    alpha = hit * keep if scene.film_transparent else 1.0 - hit * (1.0 - keep)
+    return alpha.astype(np.float32), keep
 
 
 def _needs_hits(closure):

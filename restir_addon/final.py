@@ -49,10 +49,10 @@ def restir_settings(scene):
         boiling_filter=float(s.boiling_filter))
 
 
-def film_images(film, transparent=False):
-    """Pass name -> (H, W, C) float32 from a path-traced Film (transparent:
-    Film > Transparent, alpha = coverage by geometry)."""
-    alpha = film.aov("alpha", 1) if transparent else 1.0
+def film_images(film):
+    """Pass name -> (H, W, C) float32 from a path-traced Film; Combined's
+    alpha: coverage by geometry with Film > Transparent, less holdouts."""
+    alpha = film.aov("alpha", 1) if film.count else 1.0
     images = {"Combined": to_rgba(film.mean(), alpha), "Depth": film.aov("depth", 1),
               "Normal": film.aov("normal", 3), "Denoising Albedo": film.aov("albedo", 3)}
     if film.count == 0:
@@ -60,11 +60,11 @@ def film_images(film, transparent=False):
     return images
 
 
-def frame_images(frame, width, height, transparent=False):
+def frame_images(frame, width, height):
     """Pass name -> (H, W, C) float32 from a ReSTIR GI FrameResult."""
     shape = (height, width)
     reservoir = np.stack([frame.M, frame.W, np.zeros_like(frame.M)], axis=1)
-    alpha = frame.alpha.reshape(*shape, 1) if transparent and frame.alpha is not None else 1.0
+    alpha = frame.alpha.reshape(*shape, 1) if frame.alpha is not None else 1.0
     return {"Combined": to_rgba(frame.color.reshape(*shape, 3), alpha),
             "Depth": frame.depth.reshape(*shape, 1), "Normal": frame.normal.reshape(*shape, 3),
             "Denoising Albedo": frame.albedo.reshape(*shape, 3),
@@ -97,7 +97,7 @@ def _render_path(engine, ctx, scene, result, width, height, export_s):
                                 f"| {seconds:.1f} s (export {export_s:.2f} s)")
         now = time.perf_counter()
         if now - last_update[0] > UPDATE_INTERVAL:
-            _write(result, film_images(f, ctx.scene.film_transparent), width, height)
+            _write(result, film_images(f), width, height)
             engine.update_result(result)
             last_update[0] = now
 
@@ -105,7 +105,7 @@ def _render_path(engine, ctx, scene, result, width, height, export_s):
                         should_stop=engine.test_break)
     if film.count < settings.samples:
         engine.report({"INFO"}, f"Render cancelled after {film.count} of {settings.samples} samples")
-    return film_images(film, ctx.scene.film_transparent)
+    return film_images(film)
 
 
 def _render_restir(engine, ctx, scene, view_layer, width, height, export_s):
@@ -140,7 +140,7 @@ def _render_restir(engine, ctx, scene, view_layer, width, height, export_s):
         return None
     if done[0] < frames:
         engine.report({"INFO"}, f"Render cancelled after {done[0]} of {frames} frames of resampling")
-    return frame_images(out, width, height, ctx.scene.film_transparent)
+    return frame_images(out, width, height)
 
 
 def render(engine, depsgraph):

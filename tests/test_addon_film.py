@@ -36,3 +36,22 @@ def test_transparent_film_alpha_is_coverage(addon, mode):
     scene.render.film_transparent = False
     rgba = render(addon)
     assert np.allclose(rgba[..., 3], 1.0) and np.allclose(rgba[:, 10:, :3], 0.5, atol=1e-3)
+
+
+@pytest.mark.parametrize("mode", MODES)
+def test_holdout_cuts_out_the_object(addon, mode):
+    """A Holdout material leaves a transparent black hole where the camera sees
+    it, with or without Film > Transparent."""
+    import bpy
+    scene = fresh(16, 16, samples=4, mode=mode)
+    camera()
+    world((0.5, 0.5, 0.5))
+    mat = bpy.data.materials.new("Cut")
+    tree = mat.node_tree
+    out = next(n for n in tree.nodes if n.type == "OUTPUT_MATERIAL")
+    tree.links.new(tree.nodes.new("ShaderNodeHoldout").outputs[0], out.inputs["Surface"])
+    add_mesh("Hole", *rect(-10, 0, -10, 10), mat=mat)
+    rgba = render(addon)
+    left, right = rgba[:, :6], rgba[:, 10:]
+    assert np.allclose(left, 0.0)                                   # cut out: black, alpha 0
+    assert np.allclose(right[..., 3], 1.0) and np.allclose(right[..., :3], 0.5, atol=1e-3)

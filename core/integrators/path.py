@@ -15,7 +15,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .. import samplers
+from .. import materials, samplers
 from ..accel import offset_origins
 from ..camera import generate_rays, view_depth
 from ..interaction import surface_hits
@@ -96,7 +96,7 @@ class PassResult:
     depth: np.ndarray       # (P,) view-axis depth, 1e10 where nothing was hit
     normal: np.ndarray      # (P, 3) world shading normal facing the camera (0 on misses)
     albedo: np.ndarray      # (P, 3) diffuse + specular albedo (denoising albedo)
-    alpha: np.ndarray = None  # (P,) 1 where the camera ray met geometry (Film > Transparent)
+    alpha: np.ndarray = None  # (P,) coverage (Film > Transparent) less holdouts
 
 
 def camera_pass(ctx, width, height, seed, frame, sample, max_bounces, pixel_filter, pixels=None):
@@ -128,7 +128,10 @@ def camera_pass(ctx, width, height, seed, frame, sample, max_bounces, pixel_filt
         scatter(normal, idx, surf.ns)
         scatter(albedo, idx, np.clip(shading.params.diffuse + shading.params.f0, 0.0, 1.0))
     np.nan_to_num(color, copy=False, nan=0.0, posinf=0.0, neginf=0.0)
-    return PassResult(color, depth, normal, albedo, hits.hit.astype(np.float32))
+    alpha, keep = materials.camera_alpha(scene, n, idx, surf)
+    if (keep < 1).any():
+        color = scale(color, keep)
+    return PassResult(color, depth, normal, albedo, alpha)
 
 
 def mean_luminance(color):

@@ -14,10 +14,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .. import samplers
+from .. import materials, samplers
 from ..camera import PixelFilter
 from ..parallel import concat_rows
-from ..rows import gather
+from ..rows import gather, scale
 from .accumulation import STILL, accumulate, previous_pixels, restart
 from .adaptive_direct import light_sample_counts, reprojected_hold, update_noise_hold
 from ..reservoirs import finalize, merge
@@ -254,6 +254,9 @@ class ReSTIRGI:
             spatial.clear(visibility < 0)
         direct_total = gb.emission + direct
         indirect += glossy      # the glossy lobe's light, from this frame's own samples
+        alpha_now, keep = materials.camera_alpha(scene, len(gb.valid), gb.index, gb.surf)
+        if (keep < 1).any():    # Holdout: the pixel's share cut out, colour and all
+            direct_total, indirect = scale(direct_total, keep), scale(indirect, keep)
         for a in (direct_total, indirect):
             np.nan_to_num(a, copy=False, nan=0.0, posinf=0.0, neginf=0.0)
         acc = None
@@ -264,12 +267,11 @@ class ReSTIRGI:
             elif forget_old:
                 restart(prev_acc, MOVING_CAP)
             acc = accumulate(prev_acc, acc_pix if prev_acc is not None else None,
-                             direct_total, indirect, gb.albedo, gb.n, settings.accumulate,
-                             gb.valid.astype(np.float32))
+                             direct_total, indirect, gb.albedo, gb.n, settings.accumulate, alpha_now)
             direct_total, indirect, albedo, normal = acc.direct, acc.indirect, acc.albedo, acc.normal
             alpha = acc.alpha
         else:
-            albedo, normal, alpha = gb.albedo, gb.n, gb.valid.astype(np.float32)
+            albedo, normal, alpha = gb.albedo, gb.n, alpha_now
         color = direct_total + indirect
 
         self.history = FrameHistory(
