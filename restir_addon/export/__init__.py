@@ -111,7 +111,7 @@ def export_scene(depsgraph, width=None, height=None):
         tris.append(mesh.triangles + offset)
         normals.append(nrm)
         uvs.append(mesh.uvs)
-        corners.append(corner)
+        corners.append(_placed_corners(corner, inst.matrix_world))
         mids.append(slot_ids[slots])
         key = instance_key(inst, obj)
         if key not in object_index:
@@ -161,6 +161,23 @@ def export_scene(depsgraph, width=None, height=None):
     scene.object_matrices = (np.stack(object_matrices) if object_matrices
                              else np.zeros((0, 4, 4), np.float32))
     return scene, camera is not None
+
+
+def _placed_corners(corner, matrix):
+    """Corner data of one placed instance: tangents (read in object space)
+    turned into world space by the instance's matrix; the rest unchanged."""
+    keys = [k for k in corner if k.startswith("tangent:")]
+    if not keys:
+        return corner
+    m = np.asarray(matrix, np.float32)[:3, :3]
+    out = dict(corner)
+    for k in keys:
+        t = corner[k].copy()
+        v = t[..., :3] @ m.T
+        length = np.linalg.norm(v, axis=-1, keepdims=True)
+        t[..., :3] = v / np.where(length > 0, length, 1)
+        out[k] = t
+    return out
 
 
 def _corner_data(parts, tris):
