@@ -5,6 +5,7 @@ a material slot change, a mesh edit of the same size)."""
 
 import numpy as np
 
+from .export import corner_data, placed_corners
 from .viewport_sync import _placed
 
 NAMES = ("vertices", "triangles", "normals", "uvs", "material_ids", "object_ids", "face_normals")
@@ -34,6 +35,8 @@ class CombinedArrays:
             self._placed.pop(key, None)
         in_place = self.arrays is not None and not relayout and all(
             key in self._layout and self._fits(key, instances[key]) for key in changed | reslotted)
+        # Corner data (textured materials) is rebuilt whole on a change.
+        in_place = in_place and not (changed and any(it.mesh.corners for it in instances.values()))
         if not in_place:
             self._assemble(instances)
             return self.arrays
@@ -88,5 +91,8 @@ class CombinedArrays:
         a["keys"] = keys
         a["matrices"] = (np.stack(matrices).astype(np.float32) if matrices
                          else np.zeros((0, 4, 4), np.float32))
+        a["corner_data"] = corner_data(
+            [placed_corners(it.mesh.corners, it.matrix) for it in instances.values()],
+            [it.mesh.triangles for it in instances.values()])
         self.arrays = a
         self._layout = layout

@@ -127,8 +127,13 @@ class SceneReader:
             orig = obj.original
             flagged = reread_objects is None or orig.name in reread_objects or (
                 orig.data is not None and orig.data.as_pointer() in (reread_data or ()))
-            if mkey not in fresh and (flagged or mkey not in self._meshes):
-                self._meshes[mkey] = _read_object_mesh(obj)
+            slot_ids = np.array([self._materials.id_of(s.material) for s in obj.material_slots] or [0],
+                                np.int32)
+            needs = self._materials.needs(slot_ids)
+            cached = self._meshes.get(mkey)
+            missing = cached is not None and not needs <= set(cached.corners)
+            if mkey not in fresh and (flagged or mkey not in self._meshes or missing):
+                self._meshes[mkey] = _read_object_mesh(obj, needs, self.warnings)
                 self.work.mesh_exports += 1
                 fresh.add(mkey)
             mesh = self._meshes[mkey]
@@ -137,8 +142,6 @@ class SceneReader:
             key = instance_key(inst, obj)
             while key in instances:     # the same key twice: keep both, numbered
                 key = key + (len(instances),)
-            slot_ids = np.array([self._materials.id_of(s.material) for s in obj.material_slots] or [0],
-                                np.int32)
             instances[key] = _Instance(mesh, np.array(inst.matrix_world, np.float64), slot_ids)
         for mkey in set(self._meshes) - used_meshes:
             del self._meshes[mkey]

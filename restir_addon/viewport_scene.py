@@ -85,6 +85,7 @@ class SceneApplier:
                       uvs=a["uvs"], material_ids=mids, object_ids=a["object_ids"], materials=mats,
                       lights=self._scene_lights, camera=self._camera, environment=self._environment,
                       shaders=self._scene_shaders, images=self._scene_images,
+                      corner_data=a.get("corner_data") or {},
                       width=w, height=h, filter_width=self._filter_width,
                       object_keys=list(a["keys"]), object_matrices=a["matrices"].copy(),
                       face_normals=a["face_normals"],

@@ -12,7 +12,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..core.scene import Camera
-from .export.mesh import MeshData, place, read_mesh
+from .export.mesh import MeshData, place, read_corner_data, read_mesh
 
 
 @dataclass
@@ -35,17 +35,27 @@ def _clean_mesh(mesh):
     if keep.all():
         return mesh
     return MeshData(mesh.positions, mesh.triangles[keep], mesh.normals[keep], mesh.uvs[keep],
-                    mesh.slots[keep])
+                    mesh.slots[keep], {k: v[keep] for k, v in mesh.corners.items()})
 
 
 def _mesh_key(obj):
     return obj.data.as_pointer() if obj.type == "MESH" else ("converted", obj.name)
 
 
-def _read_object_mesh(obj):
-    """MeshData of an evaluated geometry object (None if it has no mesh)."""
+def _read_object_mesh(obj, keys=(), warn=None):
+    """MeshData of an evaluated geometry object (None if it has no mesh),
+    with the corner data ``keys`` its materials read (export/mesh.py)."""
+    def read(me):
+        try:
+            mesh = read_mesh(me)
+        except KeyError:            # loose geometry without positions
+            return None
+        if keys:
+            mesh.corners = read_corner_data(me, set(keys), warn or (lambda text: None), obj.name)
+        return _clean_mesh(mesh)
+
     if obj.type == "MESH":
-        return _clean_mesh(read_mesh(obj.data))
+        return read(obj.data)
     try:
         me = obj.to_mesh()
     except RuntimeError:
@@ -53,7 +63,7 @@ def _read_object_mesh(obj):
     if me is None:
         return None
     try:
-        return _clean_mesh(read_mesh(me))
+        return read(me)
     finally:
         obj.to_mesh_clear()
 

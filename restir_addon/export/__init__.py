@@ -111,7 +111,7 @@ def export_scene(depsgraph, width=None, height=None):
         tris.append(mesh.triangles + offset)
         normals.append(nrm)
         uvs.append(mesh.uvs)
-        corners.append(_placed_corners(corner, inst.matrix_world))
+        corners.append(placed_corners(corner, inst.matrix_world))
         mids.append(slot_ids[slots])
         key = instance_key(inst, obj)
         if key not in object_index:
@@ -143,7 +143,7 @@ def export_scene(depsgraph, width=None, height=None):
         object_ids=per_tri[3],
         width=width, height=height,
         filter_width=float(bscene.render.filter_size),
-        corner_data=_corner_data(corners, tris),
+        corner_data=corner_data(corners, tris),
     )
     scene.environment = world
     scene.film_transparent = bool(getattr(bscene.render, "film_transparent", False))
@@ -163,7 +163,7 @@ def export_scene(depsgraph, width=None, height=None):
     return scene, camera is not None
 
 
-def _placed_corners(corner, matrix):
+def placed_corners(corner, matrix):
     """Corner data of one placed instance: tangents (read in object space)
     turned into world space by the instance's matrix; the rest unchanged."""
     keys = [k for k in corner if k.startswith("tangent:")]
@@ -180,7 +180,7 @@ def _placed_corners(corner, matrix):
     return out
 
 
-def _corner_data(parts, tris):
+def corner_data(parts, tris):
     """Per-triangle corner data of all objects by key, zeros where an object
     had none (make_scene drops it with the triangles it drops)."""
     keys = set().union(*parts) if parts else set()

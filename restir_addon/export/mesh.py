@@ -4,7 +4,7 @@ Geometry is read once per mesh data block (instances share it) in object space;
 ``place`` applies each instance's matrix.
 """
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -21,6 +21,7 @@ class MeshData:
     normals: np.ndarray         # (T, 3, 3) corner normals, object space
     uvs: np.ndarray             # (T, 3, 2)
     slots: np.ndarray           # (T,) material slot index
+    corners: dict = field(default_factory=dict)   # read_corner_data's, where a user reads it
 
 
 def _get(collection, attr, dtype, width, count):
