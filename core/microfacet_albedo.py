@@ -57,21 +57,25 @@ def tables():
     return a_tab.astype(np.float32), b_tab.astype(np.float32)
 
 
-def _bilinear(table, rough, cos):
+def albedo_terms(rough, cos):
+    """(A, B) at roughness and cos theta_o arrays: E = f0 A + f90 B (bilinear,
+    the four taps' indices and weights shared by both tables)."""
+    a_tab, b_tab = tables()
     x = np.clip(np.asarray(cos, np.float32) * N_COS - 0.5, 0, N_COS - 1)
     y = np.clip(np.asarray(rough, np.float32) * (N_ROUGH - 1), 0, N_ROUGH - 1)
     x0 = np.minimum(x.astype(np.int64), N_COS - 2)
     y0 = np.minimum(y.astype(np.int64), N_ROUGH - 2)
     fx, fy = x - x0, y - y0
-    t = table
-    return ((t[y0, x0] * (1 - fx) + t[y0, x0 + 1] * fx) * (1 - fy)
-            + (t[y0 + 1, x0] * (1 - fx) + t[y0 + 1, x0 + 1] * fx) * fy).astype(np.float32)
+    i = y0 * N_COS + x0
+    w00, w01 = (1 - fx) * (1 - fy), fx * (1 - fy)
+    w10, w11 = (1 - fx) * fy, fx * fy
 
+    def read(table):
+        flat = table.reshape(-1)
+        return (np.take(flat, i) * w00 + np.take(flat, i + 1) * w01
+                + np.take(flat, i + N_COS) * w10 + np.take(flat, i + N_COS + 1) * w11).astype(np.float32)
 
-def albedo_terms(rough, cos):
-    """(A, B) at roughness and cos theta_o arrays: E = f0 A + f90 B."""
-    a_tab, b_tab = tables()
-    return _bilinear(a_tab, rough, cos), _bilinear(b_tab, rough, cos)
+    return read(a_tab), read(b_tab)
 
 
 @functools.lru_cache(maxsize=1)
