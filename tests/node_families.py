@@ -82,6 +82,29 @@ def image(scene):
     _assign(["TallBox", "ShortBox"], mat2)
 
 
+def noise(scene):
+    """Noise Texture (fBM, distortion) through a Color Ramp, and its Color."""
+    mat, tree, out = _new_material("Noisy")
+    tex = tree.nodes.new("ShaderNodeTexNoise")
+    tex.inputs["Scale"].default_value = 4.0
+    tex.inputs["Detail"].default_value = 3.5
+    tex.inputs["Distortion"].default_value = 0.3
+    ramp = tree.nodes.new("ShaderNodeValToRGB")
+    ramp.color_ramp.elements[0].position = 0.4
+    ramp.color_ramp.elements[1].position = 0.6
+    tree.links.new(tex.outputs["Fac"], ramp.inputs["Fac"])
+    d = tree.nodes.new("ShaderNodeBsdfDiffuse")
+    tree.links.new(ramp.outputs["Color"], d.inputs["Color"])
+    tree.links.new(d.outputs[0], out.inputs["Surface"])
+    _assign(["BackWall", "Floor"], mat)
+    mat2, tree2, out2 = _new_material("NoisyColor")
+    tex2 = tree2.nodes.new("ShaderNodeTexNoise")
+    d2 = tree2.nodes.new("ShaderNodeBsdfDiffuse")
+    tree2.links.new(tex2.outputs["Color"], d2.inputs["Color"])
+    tree2.links.new(d2.outputs[0], out2.inputs["Surface"])
+    _assign(["TallBox", "ShortBox"], mat2)
+
+
 def procedural(scene):
     """Checker, Gradient, Color Ramp, Math, Mix (multiply), Map Range, Hue/Saturation."""
     mat, tree, out = _new_material("Procedural")
@@ -285,6 +308,6 @@ def hdri(scene, name="sunset.exr"):
     bg.inputs["Strength"].default_value = 1.5
 
 
-FAMILIES = {"image": image, "procedural": procedural, "shaders": shaders, "normals": normals,
+FAMILIES = {"image": image, "procedural": procedural, "noise": noise, "shaders": shaders, "normals": normals,
             "attributes": attributes, "emission": emission, "glass": glass, "alpha": alpha,
             "hdri": hdri}

@@ -327,3 +327,19 @@ def test13_three_hits_are_not_a_colour():
     assert env.constant is not None and np.allclose(env.constant, [0.1, 0.2, 0.3])
     const[0].inputs["Strength"] = 0.0
     assert world_environment(ShaderGraph(nodes=const, output=Link(0, "Background"))) is None
+
+
+def test14_noise_is_gradient_noise(rng):
+    """Perlin noise vanishes on the integer lattice, stays within [-1, 1], is
+    continuous; normalised fBM lies in [0, 1] (the pattern itself is checked
+    against Cycles in tests/test_nodes_vs_cycles.py)."""
+    from core.shader.nodes_noise import fbm, snoise
+    lattice = rng.integers(-50, 50, (1000, 3)).astype(np.float32)
+    assert np.allclose(snoise(lattice), 0.0, atol=1e-6)
+    p = rng.uniform(-20, 20, (20000, 3)).astype(np.float32)
+    n = snoise(p)
+    assert np.isfinite(n).all() and np.abs(n).max() <= 1.0 and n.std() > 0.1
+    step = snoise(p + np.float32(1e-3)) - n
+    assert np.abs(step).max() < 0.05
+    f = fbm(p, 3.5, 0.5, 2.0)
+    assert (f >= 0).all() and (f <= 1).all() and abs(float(f.mean()) - 0.5) < 0.02

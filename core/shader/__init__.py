@@ -3,8 +3,8 @@ batches of hits (evaluate.py) by one evaluator per node type (nodes_*.py),
 leaving closures (closure.py) that core/materials.py turns into BSDF
 parameters."""
 
-from . import (nodes_color, nodes_input, nodes_math, nodes_shader, nodes_spectrum,  # noqa: F401 (registers)
-               nodes_texture)
+from . import (nodes_color, nodes_input, nodes_math, nodes_noise, nodes_shader,  # noqa: F401 (registers)
+               nodes_spectrum, nodes_texture)
 from .closure import Closure
 from .evaluate import EVALUATORS, CompiledShader
 from .geometry import SurfaceGeometry, WorldGeometry
