@@ -146,5 +146,7 @@ def noise_texture(inp, geom, n, sh):
     args = (inp.float("Detail", 2.0), inp.float("Roughness", 0.5), inp.float("Lacunarity", 2.0),
             bool(n.props.get("normalize", True)))
     value = fbm(p, *args)
+    if (sh.index.get(id(n)), "Color") not in sh.read_outputs:
+        return {"Fac": value}       # the colour's two more fBMs only where it is read
     color = np.stack([value, fbm(p + random_offset(3), *args), fbm(p + random_offset(4), *args)], axis=1)
     return {"Fac": value, "Color": color.astype(np.float32)}
