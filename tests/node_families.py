@@ -83,7 +83,8 @@ def image(scene):
 
 
 def noise(scene):
-    """Noise Texture (fBM, distortion) through a Color Ramp, and its Color."""
+    """Noise Texture (fBM, distortion) through a Color Ramp, and its Color;
+    Voronoi's cell colour and distance on the side walls."""
     mat, tree, out = _new_material("Noisy")
     tex = tree.nodes.new("ShaderNodeTexNoise")
     tex.inputs["Scale"].default_value = 4.0
@@ -103,6 +104,20 @@ def noise(scene):
     tree2.links.new(tex2.outputs["Color"], d2.inputs["Color"])
     tree2.links.new(d2.outputs[0], out2.inputs["Surface"])
     _assign(["TallBox", "ShortBox"], mat2)
+    mat3, tree3, out3 = _new_material("Cells")
+    vor = tree3.nodes.new("ShaderNodeTexVoronoi")
+    vor.inputs["Scale"].default_value = 3.0
+    d3 = tree3.nodes.new("ShaderNodeBsdfDiffuse")
+    tree3.links.new(vor.outputs["Color"], d3.inputs["Color"])
+    tree3.links.new(d3.outputs[0], out3.inputs["Surface"])
+    _assign(["LeftWall"], mat3)
+    mat4, tree4, out4 = _new_material("CellDistance")
+    vor4 = tree4.nodes.new("ShaderNodeTexVoronoi")
+    vor4.inputs["Scale"].default_value = 6.0
+    d4 = tree4.nodes.new("ShaderNodeBsdfDiffuse")
+    tree4.links.new(vor4.outputs["Distance"], d4.inputs["Color"])
+    tree4.links.new(d4.outputs[0], out4.inputs["Surface"])
+    _assign(["RightWall"], mat4)
 
 
 def procedural(scene):

@@ -343,3 +343,23 @@ def test14_noise_is_gradient_noise(rng):
     assert np.abs(step).max() < 0.05
     f = fbm(p, 3.5, 0.5, 2.0)
     assert (f >= 0).all() and (f <= 1).all() and abs(float(f.mean()) - 0.5) < 0.02
+
+
+def test15_voronoi_cells(rng):
+    """F1 distance is the distance to the nearest jittered cell point (checked
+    against a brute-force search over 5x5x5 cells); randomness 0 puts the
+    points on the lattice."""
+    from core.shader.nodes_noise import cell_random, voronoi_f1
+    p = rng.uniform(-5, 5, (500, 3)).astype(np.float32)
+    dist, colour, pos = voronoi_f1(p, 1.0)
+    base = np.floor(p).astype(np.int32)
+    best = np.full(len(p), np.inf)
+    for off in np.stack(np.meshgrid(*[np.arange(-2, 3)] * 3, indexing="ij"), -1).reshape(-1, 3):
+        cell = base + off
+        point = cell + cell_random(cell)
+        best = np.minimum(best, np.linalg.norm(point - p, axis=1))
+    np.testing.assert_allclose(dist, best, atol=1e-5)
+    np.testing.assert_allclose(np.linalg.norm(pos - p, axis=1), dist, atol=1e-5)
+    assert (colour >= 0).all() and (colour <= 1).all()
+    d0, _, _ = voronoi_f1(p, 0.0)
+    np.testing.assert_allclose(d0, np.linalg.norm(p - np.round(p), axis=1), atol=1e-5)
