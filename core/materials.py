@@ -167,31 +167,32 @@ def _may_be_transparent(graph):
 def transparency(scene, surf):
     """(N,) probability that a ray passes the surface at hits ``surf``."""
     sh = shading(scene)
-    ids = surf.material
-    t = np.take(sh.transparent_row, ids)
-    for m in sh.varying:
-        if m not in sh.transparent_ids:
-            continue
-        rows = np.nonzero(ids == m)[0]
-        if len(rows):
-            closure = sh.compiled[m].closure(SurfaceGeometry(scene, surf.subset(rows)))
-            t[rows] = _pass_probability(closure, len(rows))
-    return t
+    return _per_hit(scene, surf, sh.transparent_row, sh.transparent_ids, False,
+                    _pass_probability)
 
 
 def holdout(scene, surf):
     """(N,) share of the pixel a Holdout closure cuts out at camera hits ``surf``."""
     sh = shading(scene)
+    return _per_hit(scene, surf, sh.holdout_row, sh.holdout_ids, True,
+                    lambda c, n: np.clip(c.get("holdout", n), 0.0, 1.0))
+
+
+def _per_hit(scene, surf, row, ids_with, camera_ray, of_closure):
+    """A scalar of the closures at hits: ``row`` (per material) where the
+    material is constant, ``of_closure(closure, n)`` of the per-hit graphs of
+    the materials in ``ids_with``."""
+    sh = shading(scene)
     ids = surf.material
-    h = np.take(sh.holdout_row, ids)
+    out = np.take(row, ids)
     for m in sh.varying:
-        if m not in sh.holdout_ids:
+        if m not in ids_with:
             continue
         rows = np.nonzero(ids == m)[0]
         if len(rows):
-            closure = sh.compiled[m].closure(SurfaceGeometry(scene, surf.subset(rows), camera_ray=True))
-            h[rows] = np.clip(closure.get("holdout", len(rows)), 0.0, 1.0)
-    return h
+            closure = sh.compiled[m].closure(SurfaceGeometry(scene, surf.subset(rows), camera_ray))
+            out[rows] = of_closure(closure, len(rows))
+    return out
 
 
 def camera_alpha(scene, n, index, surf):
