@@ -32,6 +32,10 @@ class SceneShading:
         table = bsdf.material_lobes(scene.materials)
         one = WorldGeometry(np.array([[0.0, 0.0, 1.0]], np.float32))
         self.emission = np.array(scene.materials.emission, np.float32, copy=True)
+        self.transparent_ids = set()
+        self.transparent_row = np.zeros(m, np.float32)     # uniform materials' pass probability
+        self.holdout_ids = set()
+        self.holdout_row = np.zeros(m, np.float32)         # uniform materials' holdout share
         for i, graph in enumerate(shaders[:m]):
             if graph is None:
                 continue
@@ -42,32 +46,20 @@ class SceneShading:
                 for name in ("diffuse", "f0", "alpha", "p_spec", "f90", "layered", "layer_f0"):
                     getattr(table, name)[i] = getattr(row, name)[0]
                 self.emission[i] = closure.get("emission", 1)[0]
+                self.transparent_row[i] = _pass_probability(closure, 1)[0]
+                self.holdout_row[i] = np.clip(closure.get("holdout", 1)[0], 0, 1)
+                if self.transparent_row[i] > 0:
+                    self.transparent_ids.add(i)
+                if self.holdout_row[i] > 0:
+                    self.holdout_ids.add(i)
             else:
                 self.compiled[i] = shader
-        self.table = table
-        self.varying = [i for i, s in enumerate(self.compiled) if s is not None]
-        self.transparent_ids = set()
-        self.transparent_row = np.zeros(m, np.float32)     # uniform materials' pass probability
-        self.holdout_ids = set()
-        self.holdout_row = np.zeros(m, np.float32)         # uniform materials' holdout share
-        for i, graph in enumerate(shaders[:m]):
-            if graph is None:
-                continue
-            if self.compiled[i] is not None:
                 if _may_be_transparent(graph):
                     self.transparent_ids.add(i)
                 if any(node.kind == "HOLDOUT" for node in graph.nodes):
                     self.holdout_ids.add(i)
-            else:
-                closure = CompiledShader(graph, scene.images).closure(one)
-                t = _pass_probability(closure, 1)[0]
-                if t > 0:
-                    self.transparent_ids.add(i)
-                    self.transparent_row[i] = t
-                h = float(np.clip(closure.get("holdout", 1)[0], 0, 1))
-                if h > 0:
-                    self.holdout_ids.add(i)
-                    self.holdout_row[i] = h
+        self.table = table
+        self.varying = [i for i, s in enumerate(self.compiled) if s is not None]
 
 
 def params_of(closure, n):
