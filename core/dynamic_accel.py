@@ -19,6 +19,7 @@ import time
 import numpy as np
 
 from .accel import Accel, RayHits
+from .scene import column_bounds
 
 
 class TraceInterrupted(Exception):
@@ -60,7 +61,7 @@ class _Part:
         v, t = _compact(vertices, triangles[prims])
         self.accel = Accel(v, t, threads)
         # Bounds, padded so float error in the slab test never culls a hit.
-        lo, hi = (v.min(axis=0), v.max(axis=0)) if len(v) else (np.zeros(3), np.zeros(3))
+        lo, hi = column_bounds(v)
         pad = 1e-4 * max(float(np.abs(np.concatenate([lo, hi])).max()), float((hi - lo).max()), 1e-6)
         self.lo, self.hi = (lo - pad).astype(np.float32), (hi + pad).astype(np.float32)
 
@@ -80,7 +81,9 @@ class DynamicAccel:
     from one ``update`` to the next (default: the ids themselves).
     """
 
-    def __init__(self, vertices, triangles, object_ids, object_keys=None, threads=None):
+    def __init__(self, vertices, triangles, object_ids, object_keys=None, threads=None, dynamic=()):
+        """dynamic: keys of objects expected to move (animated): they start in
+        the dynamic scene, so their first move rebuilds only that one."""
         self.threads = threads
         self.rays_traced = 0            # rays queried (each counted once, whatever the scenes)
         self.trace_seconds = 0.0
@@ -93,8 +96,10 @@ class DynamicAccel:
         self._key_numbers = {}          # key -> a number that never changes
         self._dynamic = None
         self._dynamic_owners = np.zeros(0, np.int64)
+        self._dynamic_prims = np.zeros(0, np.int64)
         self._dynamic_keys = set()
-        self.update(vertices, triangles, object_ids, object_keys, changed=None)
+        self._object_ids_in = None      # the object_ids array of the last update, as passed
+        self.update(vertices, triangles, object_ids, object_keys, changed=set(dynamic) or None)
 
     @staticmethod
     def from_scene(scene, threads=None):
@@ -123,8 +128,17 @@ class DynamicAccel:
         scene). Objects that vanished are noticed here. Returns the tuple of
         scenes rebuilt ("static", "dynamic").
         """
+        same_layout = (changed and self._static is not None and object_ids is self._object_ids_in
+                       and object_keys is not None and list(object_keys) == self._keys
+                       and set(changed) <= self._dynamic_keys)
+        self._object_ids_in = object_ids
         self._vertices = np.ascontiguousarray(vertices, np.float32).reshape(-1, 3)
         self._triangles = np.ascontiguousarray(triangles, np.int32).reshape(-1, 3)
+        if same_layout:
+            # Objects already in the dynamic scene moved again (an animation):
+            # the same triangles belong to each scene, only the small one is rebuilt.
+            self._build_dynamic(self._dynamic_prims, self._dynamic_owners)
+            return ("dynamic",)
         self._object_ids = np.asarray(object_ids, np.int32).reshape(-1)
         n_obj = int(self._object_ids.max()) + 1 if len(self._object_ids) else 0
         keys = list(object_keys) if object_keys is not None else list(range(n_obj))
@@ -146,6 +160,7 @@ class DynamicAccel:
             # Same objects with the same triangles: only their numbering may have moved.
             self._static.prims = static_prims.astype(np.int32)
         dynamic_prims = np.nonzero(is_dynamic)[0]
+        self._dynamic_prims = dynamic_prims
         owners = self._owners(dynamic_prims)
         if set(changed) & present or not np.array_equal(owners, self._dynamic_owners):
             self._build_dynamic(dynamic_prims, owners)
@@ -163,6 +178,7 @@ class DynamicAccel:
             self._dynamic.close()
         self._dynamic = None
         self._dynamic_owners = np.zeros(0, np.int64)
+        self._dynamic_prims = np.zeros(0, np.int64)
         self._dynamic_keys = set()
         return ("static",)
 

@@ -27,7 +27,7 @@ import numpy as np
 from .analytic_lights import (INF_DIST, AnalyticLights, _by_code, _empty_sample, _per_row,
                               _rows_where, _same_index)
 from .environment import scene_environment
-from .materials import triangle_emission
+from .materials import emissive_triangles
 from .rows import divide, gather, rows_finite, scale, scatter
 from .sampling import Distribution1D, dot, luminance, square_to_uniform_triangle
 from .scene import LIGHT_AREA, LIGHT_POINT, LIGHT_SPOT, LIGHT_SUN
@@ -63,9 +63,9 @@ class LightSet:
 
         # Emissive triangles.
         # Per triangle, from the materials' constant rows and shader graphs.
-        emission = triangle_emission(scene)
+        candidates, emission = emissive_triangles(scene)
         lum = luminance(emission) if len(emission) else np.zeros(0, np.float32)
-        self.tri_index = np.nonzero(lum > 0)[0].astype(np.int32)
+        self.tri_index = candidates[lum > 0].astype(np.int32)
         tri = scene.triangles[self.tri_index]
         self.tri_p0 = scene.vertices[tri[:, 0]] if len(tri) else np.zeros((0, 3), np.float32)
         self.tri_e1 = (scene.vertices[tri[:, 1]] - self.tri_p0) if len(tri) else np.zeros((0, 3), np.float32)
@@ -73,7 +73,7 @@ class LightSet:
         cross = np.cross(self.tri_e1, self.tri_e2) if len(tri) else np.zeros((0, 3), np.float32)
         self.tri_area = (0.5 * np.linalg.norm(cross, axis=1)).astype(np.float32)
         self.tri_normal = (cross / np.maximum(2 * self.tri_area, 1e-30)[:, None]).astype(np.float32)
-        self.tri_emission = emission[self.tri_index]
+        self.tri_emission = emission[lum > 0]
         # Map from any triangle to its slot among emissive ones (-1 if not emissive).
         self.tri_slot = np.full(scene.triangle_count, -1, np.int32)
         self.tri_slot[self.tri_index] = np.arange(len(self.tri_index), dtype=np.int32)
@@ -84,7 +84,7 @@ class LightSet:
 
         # Selection weights ~ emitted power, in the order: analytic lights,
         # emissive triangles, the world.
-        w_tri = lum[self.tri_index] * self.tri_area * np.pi * (2.0 if self.two_sided else 1.0)
+        w_tri = lum[lum > 0] * self.tri_area * np.pi * (2.0 if self.two_sided else 1.0)
         kind = scene.lights.kind
         group = np.select([(kind == LIGHT_POINT) | (kind == LIGHT_SPOT), kind == LIGHT_SUN,
                            kind == LIGHT_AREA], [_SPHERE, _SUN, _AREA], _NONE)

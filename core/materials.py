@@ -251,13 +251,30 @@ def valid_reflection_normal(ng, wo, n):
     return np.where(bad[:, None], fixed, n).astype(np.float32)
 
 
-def triangle_emission(scene):
-    """(T, 3) emitted radiance per triangle: the material's, and for graphs
-    that vary over the surface, the graph at the triangle's centre."""
+def emissive_triangles(scene):
+    """(indices, (N, 3) emitted radiance) of the triangles that may emit:
+    those of materials with emission or a graph that varies over the surface
+    (the others are skipped without a per-triangle pass over them)."""
     sh = shading(scene)
-    em = gather(sh.emission, scene.material_ids) if scene.triangle_count else np.zeros((0, 3), np.float32)
+    maybe = (np.abs(sh.emission).max(axis=1) > 0) if len(sh.emission) else np.zeros(0, bool)
+    maybe[sh.varying] = True
+    if not maybe.any() or scene.triangle_count == 0:
+        return np.zeros(0, np.int64), np.zeros((0, 3), np.float32)
+    ids = np.clip(scene.material_ids, 0, len(maybe) - 1)
+    tris = np.nonzero(maybe[ids])[0]
+    return tris, triangle_emission(scene, tris)
+
+
+def triangle_emission(scene, subset=None):
+    """(T, 3) emitted radiance per triangle (or per triangle of ``subset``):
+    the material's, and for graphs that vary over the surface, the graph at
+    the triangle's centre."""
+    sh = shading(scene)
+    all_ids = scene.material_ids if subset is None else scene.material_ids[subset]
+    em = gather(sh.emission, all_ids) if len(all_ids) else np.zeros((0, 3), np.float32)
     for m in sh.varying:
-        tris = np.nonzero(scene.material_ids == m)[0]
+        local = np.nonzero(all_ids == m)[0]
+        tris = local if subset is None else subset[local]
         if len(tris) == 0:
             continue
         from .interaction import SurfaceHits   # noqa: PLC0415
@@ -268,5 +285,5 @@ def triangle_emission(scene):
                            material=np.full(len(tris), m, np.int32), front=np.ones(len(tris), bool),
                            bary=np.full((len(tris), 2), 1 / 3, np.float32))
         closure = sh.compiled[m].closure(SurfaceGeometry(scene, hits))
-        scatter(em, tris, closure.get("emission", len(tris)))
+        scatter(em, local, closure.get("emission", len(tris)))
     return em

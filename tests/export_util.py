@@ -90,16 +90,16 @@ def export_for_render(addon, monkeypatch):
     """core.Scene the engine builds in a real final render (render-mode depsgraph:
     render visibility, render subdivision levels)."""
     import bpy
-    final = addon.restir_addon.final
+    frame_scene = addon.restir_addon.frame_scene
     captured = []
-    real = final.export_scene
+    real = frame_scene.FrameScene.update
 
-    def spy(depsgraph, width=None, height=None):
-        out = real(depsgraph, width, height)
-        captured.append(out[0])
+    def spy(self, depsgraph, width, height):
+        out = real(self, depsgraph, width, height)
+        captured.append(self.scene)
         return out
 
-    monkeypatch.setattr(final, "export_scene", spy)
+    monkeypatch.setattr(frame_scene.FrameScene, "update", spy)
     scene = bpy.context.scene
     if scene.camera is None:
         cam = bpy.data.objects.new("Camera", bpy.data.cameras.new("Camera"))

@@ -262,6 +262,7 @@ class _FakePass:
 
 class _FakeEngine:
     """The handful of RenderEngine calls the final render makes, recorded."""
+    is_animation = False
 
     def __init__(self, names):
         self.pixels, self.log, self.ended = {}, [], False

@@ -60,7 +60,7 @@ def _read(me, name, warn):
         return None
 
 
-def _object_random(key):
+def object_random(key):
     """Object Info's Random: a stable number in [0, 1) per placed object."""
     digest = hashlib.blake2b(repr(key).encode(), digest_size=4).digest()
     return int.from_bytes(digest, "little") / 2.0 ** 32
@@ -151,7 +151,7 @@ def export_scene(depsgraph, width=None, height=None):
     scene.images = materials.images.images
     scene.object_info = {"Color": np.asarray([c[:3] for c in object_colors] or np.zeros((0, 3)), np.float32),
                          "Alpha": np.asarray([c[3] for c in object_colors], np.float32),
-                         "Random": np.asarray([_object_random(k) for k in object_index], np.float32)}
+                         "Random": np.asarray([object_random(k) for k in object_index], np.float32)}
     shading(scene)      # compiles the graphs now: their warnings join the export's
     if visibility and not all(all(v) for v in visibility):
         scene.ray_visibility = np.asarray(visibility, bool)

@@ -160,14 +160,24 @@ def _generated(me, loops):
 
 
 def place(mesh, matrix):
-    """World-space positions and normals of a mesh under a 4x4 matrix."""
+    """World-space positions and normals of a mesh under a 4x4 matrix. A
+    matrix without rotation or scale (the common case of big static meshes)
+    only translates; normals are transformed in float32, renormalised only
+    where the matrix is not a rotation times a uniform scale."""
     m = np.asarray(matrix, np.float64)
-    pos = (mesh.positions @ m[:3, :3].T + m[:3, 3]).astype(np.float32)
+    linear = m[:3, :3]
+    if np.array_equal(linear, np.eye(3)):
+        return (mesh.positions + m[:3, 3].astype(np.float32)).astype(np.float32), mesh.normals
+    pos = (mesh.positions @ linear.T.astype(np.float32) + m[:3, 3].astype(np.float32)).astype(np.float32)
     try:
-        nm = np.linalg.inv(m[:3, :3]).T
+        nm = np.linalg.inv(linear).T
     except np.linalg.LinAlgError:
         nm = np.eye(3)
-    n = (mesh.normals.reshape(-1, 3) @ nm.T).reshape(-1, 3, 3)
-    length = np.linalg.norm(n, axis=2, keepdims=True)
-    n = (n / np.where(length > 0, length, 1)).astype(np.float32)
-    return pos, n
+    n = mesh.normals.reshape(-1, 3) @ nm.T.astype(np.float32)
+    gram = nm @ nm.T
+    if np.allclose(gram, gram[0, 0] * np.eye(3), rtol=1e-6, atol=0.0) and gram[0, 0] > 0:
+        n *= np.float32(1.0 / np.sqrt(gram[0, 0]))       # rotation and uniform scale
+    else:
+        length = np.sqrt(np.einsum("ij,ij->i", n, n))[:, None]
+        n /= np.where(length > 0, length, 1)
+    return pos, n.reshape(-1, 3, 3).astype(np.float32, copy=False)

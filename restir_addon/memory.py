@@ -1,0 +1,61 @@
+"""Memory the scene will take, against what the machine has, checked before
+anything large is allocated: a scene too big stops with a report naming the
+numbers instead of being killed by the system.
+
+Instances are flattened: every placed copy of a mesh gets its own world-space
+triangles in the combined arrays and the Embree scene (embreex offers no
+instancing), so 10,000 instances of a 10k-triangle object cost what 100M
+distinct triangles do.
+"""
+
+import os
+
+# Bytes per placed triangle and vertex held at once while a scene is built:
+# combined arrays (indices 12, corner normals 36, UVs 24, ids 8, face normal
+# 12), their placed copies (48), Embree's index and BVH (about 80); per vertex
+# the positions, their placed copy and Embree's copy (36).
+BYTES_PER_TRIANGLE = 220
+BYTES_PER_VERTEX = 36
+# Share of the available memory the geometry may take (the rest: images,
+# reservoirs, Blender itself).
+BUDGET_SHARE = 0.6
+
+
+class SceneTooLarge(Exception):
+    """The placed geometry would not fit in memory; the message says why."""
+
+
+def available_bytes():
+    """Memory available to this process now (Linux: MemAvailable), or None."""
+    try:
+        with open("/proc/meminfo") as f:
+            for line in f:
+                if line.startswith("MemAvailable:"):
+                    return int(line.split()[1]) * 1024
+    except OSError:
+        pass
+    try:
+        return os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
+    except (ValueError, OSError, AttributeError):
+        return None
+
+
+def geometry_bytes(triangles, vertices):
+    return triangles * BYTES_PER_TRIANGLE + vertices * BYTES_PER_VERTEX
+
+
+def check_geometry(triangles, vertices, instances, available=None):
+    """Raise SceneTooLarge if placing ``triangles`` would not fit."""
+    available = available_bytes() if available is None else available
+    if available is None:
+        return
+    need = geometry_bytes(triangles, vertices)
+    if need <= BUDGET_SHARE * available:
+        return
+    gb = 1024.0 ** 3
+    raise SceneTooLarge(
+        f"The scene has {triangles:,} triangles once its {instances:,} objects and instances are "
+        f"placed: about {need / gb:.1f} GB of geometry, and this machine has {available / gb:.1f} GB "
+        f"available (the limit is {BUDGET_SHARE:.0%} of it). Instances are not shared in memory by "
+        "this engine: reduce the number of instances or their resolution (e.g. Simplify > Max "
+        "Subdivision), or render on a machine with more memory.")

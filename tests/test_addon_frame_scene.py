@@ -1,0 +1,238 @@
+"""Animation renders keep the exported scene between frames
+(restir_addon/frame_scene.py): what changed between two frames is seen, and
+only that is read again.
+
+Each kind of edit is animated (keyframes, a modifier, a frame-change handler
+standing in for a driver that adds and deletes objects); every frame of the
+animation must match a render of that frame from scratch, with Persistent
+Data off (changes found by comparison) and on (Blender's update flags).
+"""
+
+import glob
+import os
+import re
+
+import numpy as np
+import pytest
+
+from test_addon_render import add_mesh, assert_valid, camera, fresh, rect, reports, world  # noqa: F401
+from core.film import read_exr
+
+FRAMES = (1, 2, 3, 4)
+
+
+def _principled(name, color):
+    import bpy
+    mat = bpy.data.materials.new(name)
+    mat.use_nodes = True
+    mat.node_tree.nodes["Principled BSDF"].inputs["Base Color"].default_value = (*color, 1.0)
+    return mat
+
+
+def _box(name, location, size=0.4, mat=None):
+    s = size / 2
+    verts = [[x, y, z] for z in (0, size) for y in (-s, s) for x in (-s, s)]
+    faces = [[0, 1, 3, 2], [4, 6, 7, 5], [0, 4, 5, 1], [2, 3, 7, 6], [0, 2, 6, 4], [1, 5, 7, 3]]
+    return add_mesh(name, verts, faces, location=location, mat=mat)
+
+
+def _edits_handler(scene, *_args):
+    """Stands in for a driver or script: 'Added' exists from frame 3 on,
+    'Doomed' until frame 3 (deleted at 4)."""
+    import bpy
+    f = scene.frame_current
+    added = bpy.data.objects.get("Added")
+    if f >= 3 and added is None:
+        _box("Added", (1.6, 1.6, 0.0), mat=_principled("AddedMat", (0.1, 0.2, 0.9)))
+    elif f < 3 and added is not None:
+        bpy.data.objects.remove(added)
+    doomed = bpy.data.objects.get("Doomed")
+    if f >= 4 and doomed is not None:
+        bpy.data.objects.remove(doomed)
+    elif f < 4 and doomed is None:
+        _box("Doomed", (-1.6, 1.6, 0.0), mat=_principled("DoomedMat", (0.9, 0.9, 0.1)))
+
+
+def build_scene(persistent, mode="PATH"):
+    """A lit floor with one object per kind of edit, frames 1-4."""
+    import bpy
+    scene = fresh(32, 24, samples=2, mode=mode)
+    scene.restir_gi.warmup_frames = 2
+    scene.render.use_persistent_data = persistent
+    world((0.05, 0.05, 0.05))
+    cam = camera(location=(0, 0, 6), type="ORTHO", ortho_scale=6.0)
+    add_mesh("Floor", *rect(-3, 3, -3, 3), mat=_principled("FloorMat", (0.8, 0.8, 0.8)))
+    sun = bpy.data.lights.new("Sun", "SUN")
+    sun.energy = 2.0
+    sun_obj = bpy.data.objects.new("Sun", sun)
+    sun_obj.rotation_euler = (0.4, 0.2, 0.0)
+    scene.collection.objects.link(sun_obj)
+    lamp = bpy.data.lights.new("Lamp", "POINT")
+    lamp_obj = bpy.data.objects.new("Lamp", lamp)
+    lamp_obj.location = (1.0, -1.0, 1.5)
+    scene.collection.objects.link(lamp_obj)
+
+    def key(target, path, values):
+        for frame, value in zip(FRAMES, values):
+            setattr(target, path, value)
+            target.keyframe_insert(path, frame=frame)
+
+    key(lamp, "energy", (300.0, 300.0, 0.0, 0.0))                   # switched off at 3
+    key(cam, "location", [(0.1 * f, 0.0, 6.0) for f in FRAMES])    # camera moving
+    mover = _box("Mover", (0, 0, 0), mat=_principled("MoverMat", (0.9, 0.3, 0.2)))
+    key(mover, "location", [(-1.5 + 0.6 * f, -1.2, 0.0) for f in FRAMES])
+    hider = _box("Hider", (1.6, 0.0, 0.0), mat=_principled("HiderMat", (0.2, 0.9, 0.2)))
+    key(hider, "hide_render", (False, False, True, True))         # hidden for render at 3
+    bent = add_mesh("Bent", *rect(-2.4, -1.2, -0.6, 0.6, z=0.3),
+                    mat=_principled("BentMat", (0.7, 0.7, 0.9)))
+    bent.shape_key_add(name="Basis")
+    raised = bent.shape_key_add(name="Raised")
+    raised.data[0].co.z = 1.5
+    key(raised, "value", (0.0, 0.3, 0.6, 1.0))                    # deforming mesh
+    tinted = _principled("Tinted", (0.9, 0.1, 0.1))
+    rows = _box("Rows", (0.0, 1.4, 0.0), size=0.3, mat=tinted)
+    array = rows.modifiers.new("Array", "ARRAY")
+    key(array, "count", (1, 2, 3, 4))                             # vertex count changes every frame
+    color = tinted.node_tree.nodes["Principled BSDF"].inputs["Base Color"]
+    key(color, "default_value", [(0.9, 0.1, 0.1, 1.0), (0.1, 0.9, 0.1, 1.0)] * 2)  # material animated
+    scene.frame_start, scene.frame_end = FRAMES[0], FRAMES[-1]
+    settings = scene.render.image_settings
+    settings.file_format = "OPEN_EXR"
+    settings.color_depth = "32"
+    bpy.app.handlers.frame_change_pre.append(_edits_handler)
+    _edits_handler(scene)
+    return scene
+
+
+@pytest.fixture
+def edits_handler():
+    import bpy
+    yield
+    if _edits_handler in bpy.app.handlers.frame_change_pre:
+        bpy.app.handlers.frame_change_pre.remove(_edits_handler)
+
+
+def _render_animation(addon, scene, tmp_path, name):
+    import bpy
+    work = {}
+    stream = addon.restir_addon.state.stream_for(scene.name, bpy.context.view_layer.name)
+
+    def post(sc, *_):
+        w = stream.frame_scene.work
+        work[sc.frame_current] = (w.mesh_exports, w.accel_static_builds, w.full_exports)
+
+    scene.render.filepath = str(tmp_path / f"{name}_####")
+    bpy.app.handlers.render_post.append(post)
+    try:
+        bpy.ops.render.render(animation=True)
+    finally:
+        bpy.app.handlers.render_post.remove(post)
+    return {f: read_exr(tmp_path / f"{name}_{f:04d}.exr") for f in FRAMES}, work
+
+
+@pytest.mark.parametrize("persistent", [False, True], ids=["compare", "persistent"])
+def test_every_edit_between_frames_is_seen(addon, reports, tmp_path, edits_handler, persistent):
+    import bpy
+    scene = build_scene(persistent)
+    addon.restir_addon.state.clear()
+    animation, work = _render_animation(addon, scene, tmp_path, "anim")
+    for f in FRAMES:
+        addon.restir_addon.state.clear()        # a render of frame f from scratch
+        scene.frame_set(f)
+        scene.render.filepath = str(tmp_path / f"still_{f}.exr")
+        bpy.ops.render.render(write_still=True)
+        still = read_exr(tmp_path / f"still_{f}.exr")
+        assert_valid(animation[f], (24, 32))
+        # Same pixels up to float differences of the two-part Embree scene.
+        diff = np.abs(animation[f] - still)
+        assert diff.mean() < 1e-3 * still.mean(), (f, diff.mean(), still.mean())
+    # The edits did change the picture from frame to frame.
+    assert np.abs(animation[3] - animation[2]).mean() > 0.05 * animation[2].mean()
+    # Only frame 1 read everything.
+    assert all(w[2] == work[1][2] for w in work.values()), work
+    assert reports.of("ERROR") == []
+
+
+def test_camera_and_object_motion_read_no_mesh(addon, reports, tmp_path):
+    """Frames where only the camera and an object's matrix change read no mesh
+    data and build no new static Embree scene."""
+    import bpy
+    for persistent in (False, True):
+        scene = fresh(24, 16, samples=1, mode="RESTIR_BIASED")
+        scene.restir_gi.warmup_frames = 1
+        scene.render.use_persistent_data = persistent
+        world((0.5, 0.5, 0.5))
+        add_mesh("Floor", *rect(-2, 2, -2, 2))
+        cam = camera(location=(0, 0, 5), type="ORTHO", ortho_scale=4.0)
+        box = _box("Box", (0, 0, 0))
+        for f in FRAMES:
+            cam.location.x = 0.1 * f
+            cam.keyframe_insert("location", frame=f)
+            box.location.y = 0.2 * f
+            box.keyframe_insert("location", frame=f)
+        scene.frame_start, scene.frame_end = FRAMES[0], FRAMES[-1]
+        scene.render.image_settings.file_format = "OPEN_EXR"
+        addon.restir_addon.state.clear()
+        images, work = _render_animation(addon, scene, tmp_path, f"motion{int(persistent)}")
+        first = work[FRAMES[0]]
+        assert all(w[:2] == first[:2] for w in work.values()), (persistent, work)
+        for img in images.values():
+            assert_valid(img, (16, 24))
+    assert reports.of("ERROR") == []
+
+
+def test_kept_scene_is_freed_after_the_job(addon, tmp_path):
+    """Without Persistent Data the kept scene is freed when the render ends;
+    with it, the next render starts from it."""
+    import bpy
+    scene = fresh(16, 16, samples=1)
+    world((0.5, 0.5, 0.5))
+    add_mesh("Floor", *rect(-2, 2, -2, 2))
+    camera(location=(0, 0, 5), type="ORTHO", ortho_scale=4.0)
+    scene.render.image_settings.file_format = "OPEN_EXR"
+    stream = addon.restir_addon.state.stream_for(scene.name, bpy.context.view_layer.name)
+    for persistent in (False, True):
+        scene.render.use_persistent_data = persistent
+        scene.render.filepath = str(tmp_path / f"still{int(persistent)}.exr")
+        bpy.ops.render.render(write_still=True)
+        assert (stream.frame_scene.scene is not None) == persistent
+    full = stream.frame_scene.work.full_exports
+    bpy.ops.render.render(write_still=True)
+    assert stream.frame_scene.work.full_exports == full
+    assert glob.glob(str(tmp_path / "still*.exr")) and os.path.isfile(tmp_path / "still1.exr")
+
+
+def test_too_many_instances_stop_with_a_clear_report(addon, reports, tmp_path):
+    """10,000 instances of a 10k-triangle object (100M triangles once placed)
+    on a 24 GB machine: refused before anything is placed, with the numbers,
+    and a valid black image."""
+    import bpy
+    scene = fresh(16, 16, samples=1)
+    world((0.5, 0.5, 0.5))
+    camera(location=(0, 0, 50), type="ORTHO", ortho_scale=40.0)
+    bpy.ops.mesh.primitive_grid_add(x_subdivisions=71, y_subdivisions=71, size=0.3)
+    child = bpy.context.object                              # 70 x 70 quads: 9,800 triangles
+    bpy.ops.mesh.primitive_grid_add(x_subdivisions=100, y_subdivisions=100, size=30)
+    parent = bpy.context.object                             # 10,000 vertices
+    parent.instance_type = "VERTS"
+    child.parent = parent
+    stream = addon.restir_addon.state.stream_for(scene.name, bpy.context.view_layer.name)
+    stream.frame_scene.release()
+    stream.frame_scene._available_memory = 24 * 1024 ** 3
+    scene.render.image_settings.file_format = "OPEN_EXR"
+    try:
+        with pytest.raises(RuntimeError):           # bpy raises on an ERROR report
+            render_still(scene, tmp_path / "many.exr")
+    finally:
+        stream.frame_scene._available_memory = None
+    errors = reports.of("ERROR")
+    assert len(errors) == 1 and "GB" in errors[0], errors
+    triangles = int(re.search(r"has ([\d,]+) triangles", errors[0]).group(1).replace(",", ""))
+    assert triangles > 90_000_000, errors
+    assert stream.frame_scene.scene is None
+
+
+def render_still(scene, path):
+    import bpy
+    scene.render.filepath = str(path)
+    bpy.ops.render.render(write_still=True)
