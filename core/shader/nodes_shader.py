@@ -89,6 +89,10 @@ def principled(inp, geom, n, sh):
         lobes = lobes + Closure.bsdf(1.0, None, specular=_c(coat * f0_coat) * np.ones(3, np.float32),
                                      spec_edge=_c(coat) * np.ones(3, np.float32),
                                      spec_rough=np.clip(inp.float("Coat Roughness", 0.03), 0, 1))
+    sheen = np.clip(inp.float("Sheen Weight", 0.0), 0, None)
+    if np.any(sheen > 0):
+        lobes = lobes + Closure.bsdf(1.0, None, sheen=_c(sheen) * np.clip(inp.color("Sheen Tint", (1, 1, 1)), 0, None),
+                                     sheen_rough=np.clip(inp.float("Sheen Roughness", 0.5), 0, 1))
     if normal is not None:
         lobes = _with_normal(lobes, normal)
     out = lobes.scaled(alpha) if np.any(alpha < 1) else lobes
