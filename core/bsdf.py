@@ -43,6 +43,15 @@ class BSDFParams:
     alpha_g: np.ndarray = None
     p_glass: np.ndarray = None
     eta: np.ndarray = None
+    # The sheen lobe on top (core/sheen.py; None where no row has one): its
+    # colour weight (N, 3), weight x tint, which at_view turns into its albedo
+    # toward wo; roughness (N,); and, set by at_view, the LTC's a and b (N,)
+    # and the probability of choosing it (N,).
+    sheen: np.ndarray = None
+    sheen_rough: np.ndarray = None
+    sheen_a: np.ndarray = None
+    sheen_b: np.ndarray = None
+    p_sheen: np.ndarray = None
 
     def subset(self, index):
         index = np.asarray(index)
@@ -55,6 +64,10 @@ class BSDFParams:
     @property
     def has_glass(self):
         return self.p_glass is not None
+
+    @property
+    def has_sheen(self):
+        return self.p_sheen is not None
 
 
 def bsdf_params(materials, material_ids):
@@ -112,7 +125,11 @@ def at_view(params, wo):
     boost = (1.0 + scale(f_avg, (1.0 - e1) / e1)).astype(np.float32)
     params.f0 = (params.f0 * boost).astype(np.float32)
     params.f90 = (f90 * boost).astype(np.float32)
+    if params.sheen is not None:
+        from .sheen import at_view as sheen_at_view   # noqa: PLC0415
+        sheen_at_view(params, cos)
     return params
+
 
 
 def lobe_params(diffuse, f0, roughness, f90=None, glass=None):
@@ -237,15 +254,19 @@ def _lobes(params, wo, wi, want_f, want_pdf):
     wi_up = wi[:, 2] > 0
     p_spec = _p_spec(params, wo)
     p_glass = _p_glass(params, wo)
+    p_sheen = _p_sheen(params, wo)
     f = p = None
     if want_f:
         f = scale(params.diffuse, wi_up * INV_PI)      # 1 / pi or 0 per row
         if params.smooth_n is not None:
             f = scale(f, bump_shadowing(params.smooth_n, wi))
     if want_pdf:
-        p = ((1.0 - p_spec - p_glass) * cosine_hemisphere_pdf(wi[:, 2])).astype(np.float32)
+        p = ((1.0 - p_spec - p_glass - p_sheen) * cosine_hemisphere_pdf(wi[:, 2])).astype(np.float32)
     if params.has_glass:
         _glass_lobe(params, wo, wi, p_glass, f, p)
+    if params.has_sheen:
+        from .sheen import add_lobe   # noqa: PLC0415
+        add_lobe(params, wo, wi, p_sheen, f, p)
     spec = (p_spec > 0) & wi_up
     if not spec.any():
         return f, p
@@ -322,6 +343,13 @@ def _glass_lobe(params, wo, wi, p_glass, f, p):
         p[rows] = np.take(p, rows) + np.take(p_glass, rows) * gp
 
 
+def _p_sheen(params, wo):
+    if not params.has_sheen:
+        return np.float32(0)
+    return params.p_sheen * (wo[:, 2] > 0)
+
+
+
 def evaluate(params, wo, wi):
     """f(wo, wi) as (N, 3). The diffuse lobe needs only wi above the shading
     normal (as Cycles: bent smooth-shaded normals must not blacken surfaces);
@@ -343,6 +371,13 @@ def sample(params, wo, u_lobe, u):
     wi = square_to_cosine_hemisphere(u)
     p_spec = _p_spec(params, wo)
     spec = u_lobe < p_spec
+    if params.has_sheen:
+        from .sheen import ltc_sample   # noqa: PLC0415
+        below = p_spec + _p_glass(params, wo)
+        rows = np.nonzero((u_lobe >= below) & (u_lobe < below + _p_sheen(params, wo)))[0]
+        if len(rows):
+            scatter(wi, rows, ltc_sample(gather(wo, rows), np.take(params.sheen_a, rows),
+                                         np.take(params.sheen_b, rows), gather(u, rows)))
     if params.has_glass:
         p_glass = _p_glass(params, wo)
         glass = ~spec & (u_lobe < p_spec + p_glass)

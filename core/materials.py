@@ -45,6 +45,8 @@ class SceneShading:
                 row = params_of(closure, 1)
                 for name in ("diffuse", "f0", "alpha", "p_spec", "f90", "layered", "layer_f0"):
                     getattr(table, name)[i] = getattr(row, name)[0]
+                if row.sheen is not None:
+                    _add_sheen(table, [i], row)
                 self.emission[i] = closure.get("emission", 1)[0]
                 self.transparent_row[i] = _pass_probability(closure, 1)[0]
                 self.holdout_row[i] = np.clip(closure.get("holdout", 1)[0], 0, 1)
@@ -79,6 +81,9 @@ def params_of(closure, n):
                          closure.get("spec_edge", n), glass)
     p.layered = layered
     p.layer_f0 = closure.averaged("layer_f0", n, 0.0)
+    if "sheen" in closure.fields:
+        p.sheen = closure.get("sheen", n)
+        p.sheen_rough = closure.averaged("sheen_rough", n, 0.5)
     return p
 
 
@@ -121,6 +126,8 @@ def surface_params(scene, surf, camera_ray=False):
         params.layer_f0[rows] = p.layer_f0
         if p.has_glass:
             _add_glass(params, rows, p)
+        if p.sheen is not None:
+            _add_sheen(params, rows, p)
         params.alpha[rows] = p.alpha
         params.p_spec[rows] = p.p_spec
         if closure.normal_sum is not None:
@@ -221,6 +228,16 @@ def _add_glass(params, rows, p):
     scatter(params.glass_t, rows, p.glass_t)
     for name in ("ior", "alpha_g", "p_glass", "eta", "p_spec"):
         getattr(params, name)[rows] = getattr(p, name)
+
+
+def _add_sheen(params, rows, p):
+    """Scatter the sheen of rows' parameters p into params, creating the
+    sheen fields (no sheen elsewhere) on first use."""
+    if params.sheen is None:
+        params.sheen = np.zeros((len(params.alpha), 3), np.float32)
+        params.sheen_rough = np.full(len(params.alpha), 0.5, np.float32)
+    scatter(params.sheen, np.asarray(rows), p.sheen)
+    params.sheen_rough[rows] = p.sheen_rough
 
 
 def valid_reflection_normal(ng, wo, n):

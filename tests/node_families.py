@@ -323,6 +323,52 @@ def hdri(scene, name="sunset.exr"):
     bg.inputs["Strength"].default_value = 1.5
 
 
+def _spheres(specs):
+    """Smooth UV spheres in place of the two boxes: (radius, (x, y), material)."""
+    import bpy
+    for name in ("TallBox", "ShortBox"):
+        bpy.data.objects.remove(bpy.data.objects[name])
+    for radius, (x, y), mat in specs:
+        bpy.ops.mesh.primitive_uv_sphere_add(segments=48, ring_count=24, radius=radius,
+                                             location=(x, y, radius + 0.002))
+        ob = bpy.context.object
+        ob.data.shade_smooth()
+        ob.data.materials.append(mat)
+
+
+def _principled(name, **inputs):
+    mat, tree, out = _new_material(name)
+    p = tree.nodes.new("ShaderNodeBsdfPrincipled")
+    for key, value in inputs.items():
+        p.inputs[key].default_value = value
+    tree.links.new(p.outputs[0], out.inputs["Surface"])
+    return mat
+
+
+def sheen(scene):
+    """Principled sheen (weight 1) on dark bases: two spheres of different
+    Sheen Roughness and Tint, and a sheen on the grey floor, seen at grazing."""
+    _spheres([(0.45, (-0.4, 0.25), _principled("Velvet", **{
+                  "Base Color": (0.05, 0.05, 0.05, 1), "Sheen Weight": 1.0, "Sheen Roughness": 0.5})),
+              (0.35, (0.45, -0.3), _principled("Satin", **{
+                  "Base Color": (0.12, 0.02, 0.02, 1), "Roughness": 0.4, "Sheen Weight": 1.0,
+                  "Sheen Roughness": 0.2, "Sheen Tint": (1.0, 0.8, 0.6, 1)}))])
+    _assign(["Floor"], _principled("SheenFloor", **{
+        "Base Color": (0.3, 0.3, 0.3, 1), "Sheen Weight": 1.0, "Sheen Roughness": 0.8,
+        "Sheen Tint": (0.6, 0.7, 1.0, 1)}))
+
+
+def anisotropic(scene):
+    """Principled Anisotropic on metal spheres (the default tangent, around
+    the object's z axis), approximated by the isotropic GGX of the same
+    roughness (core/shader/nodes_shader.py)."""
+    _spheres([(0.45, (-0.4, 0.25), _principled("BrushedGold", **{
+                  "Base Color": (0.9, 0.7, 0.35, 1), "Metallic": 1.0, "Roughness": 0.35, "Anisotropic": 0.8})),
+              (0.35, (0.45, -0.3), _principled("BrushedSteel", **{
+                  "Base Color": (0.7, 0.7, 0.75, 1), "Metallic": 1.0, "Roughness": 0.5, "Anisotropic": 0.5,
+                  "Anisotropic Rotation": 0.25}))])
+
+
 FAMILIES = {"image": image, "procedural": procedural, "noise": noise, "shaders": shaders, "normals": normals,
             "attributes": attributes, "emission": emission, "glass": glass, "alpha": alpha,
-            "hdri": hdri}
+            "hdri": hdri, "sheen": sheen, "anisotropic": anisotropic}

@@ -112,6 +112,8 @@ def _bsdf_sampled(params):
     glossy = params.p_spec > 0
     if params.has_glass:
         glossy = glossy | (params.p_glass > 0)
+    if params.has_sheen:
+        glossy = glossy | (params.p_sheen > 0)
     return glossy
 
 

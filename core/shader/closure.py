@@ -19,6 +19,10 @@ arrays:
   reflected part of the glass lobe (Glass, Refraction, Principled
   transmission; core/bsdf_glass.py), with weight-averaged ``ior`` and
   ``trans_rough``.
+- ``sheen``: weight x tint of the sheen layer on top (Principled sheen,
+  core/sheen.py), with weight-averaged ``sheen_rough``; at the viewing angle
+  it takes its albedo from every other lobe of the closure (core/bsdf.py
+  ``at_view``).
 - ``transparent``: the share of light passing straight through (Transparent
   BSDF, Principled Alpha).
 - ``translucent``: Lambert transmission (Translucent BSDF).
@@ -35,11 +39,12 @@ stays a handful of numbers until ``Closure.lobes`` spreads it over the hits.
 import numpy as np
 
 COLOR_FIELDS = ("diffuse", "layered", "specular", "spec_edge", "transmission", "trans_refl",
-                "transparent", "translucent", "emission")
+                "transparent", "translucent", "emission", "sheen")
 # Scalars summed with a weight and divided by it at the end: name -> (weight, lobe it averages over).
 AVERAGED = {"spec_rough": ("spec_w", "specular"), "trans_rough": ("trans_w", "transmission"),
-            "ior": ("trans_w", "transmission"), "layer_f0": ("layer_w", "layered")}
-BSDF_LOBES = ("diffuse", "layered", "specular", "transmission", "translucent")
+            "ior": ("trans_w", "transmission"), "layer_f0": ("layer_w", "layered"),
+            "sheen_rough": ("sheen_w", "sheen")}
+BSDF_LOBES = ("diffuse", "layered", "specular", "transmission", "translucent", "sheen")
 
 
 def _f32(x):
