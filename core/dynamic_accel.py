@@ -58,7 +58,13 @@ class _Part:
 
     def __init__(self, vertices, triangles, prims, threads):
         self.prims = prims.astype(np.int32)         # combined index of each local triangle
-        v, t = _compact(vertices, triangles[prims])
+        if len(prims) * 2 > len(triangles):
+            # Most of the scene (the static part): Embree takes every vertex,
+            # unused ones included, rather than a compacted copy; the bounds
+            # are those of all vertices (a superset: culling stays conservative).
+            v, t = vertices, np.ascontiguousarray(triangles[prims], np.int32)
+        else:
+            v, t = _compact(vertices, triangles[prims])
         self.accel = Accel(v, t, threads)
         # Bounds, padded so float error in the slab test never culls a hit.
         lo, hi = column_bounds(v)

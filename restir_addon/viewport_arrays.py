@@ -99,7 +99,7 @@ class CombinedArrays:
         a = {}
         for name, items in parts.items():
             dtype = np.int32 if name in _INT else np.float32
-            a[name] = np.concatenate(items).astype(dtype) if items else np.zeros(_EMPTY_SHAPES[name], dtype)
+            a[name] = np.concatenate(items, dtype=dtype) if items else np.zeros(_EMPTY_SHAPES[name], dtype)
         a["keys"] = keys
         a["matrices"] = (np.stack(matrices).astype(np.float32) if matrices
                          else np.zeros((0, 4, 4), np.float32))

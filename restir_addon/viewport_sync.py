@@ -12,7 +12,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..core.scene import Camera
-from .export.mesh import MeshData, place, read_corner_data, read_mesh
+from .export.mesh import MeshData, place, read_corner_data, read_mesh, triangle_cross, unit_rows
 
 
 @dataclass
@@ -30,13 +30,14 @@ def _clean_mesh(mesh, warn=None, name=""):
     with a warning naming the object."""
     if mesh is None or len(mesh.triangles) == 0:
         return mesh
-    p = mesh.positions[mesh.triangles]
-    cross = np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0])
     with np.errstate(invalid="ignore", over="ignore"):
-        area2 = np.einsum("ij,ij->i", cross, cross)
-    finite = np.isfinite(p).all(axis=(1, 2))
+        cross = triangle_cross(mesh.positions, mesh.triangles)
+        area2 = cross[:, 0] * cross[:, 0] + cross[:, 1] * cross[:, 1] + cross[:, 2] * cross[:, 2]
+    finite_v = np.isfinite(mesh.positions).all(axis=1)
+    finite = finite_v.take(mesh.triangles).all(axis=1)
     keep = finite & (area2 > 0) & np.isfinite(area2)
     if keep.all():
+        mesh.face_normals = unit_rows(cross)
         return mesh
     if warn is not None:
         n_bad, n_flat = int((~finite).sum()), int((finite & ~keep).sum())
@@ -46,7 +47,8 @@ def _clean_mesh(mesh, warn=None, name=""):
             warn(f"Object '{name}': Skipped {n_flat} degenerate (zero-area) triangle(s)")
     mesh.positions = np.where(np.isfinite(mesh.positions), mesh.positions, 0.0).astype(np.float32)
     return MeshData(mesh.positions, mesh.triangles[keep], mesh.normals[keep], mesh.uvs[keep],
-                    mesh.slots[keep], {k: v[keep] for k, v in mesh.corners.items()})
+                    mesh.slots[keep], {k: v[keep] for k, v in mesh.corners.items()},
+                    unit_rows(cross[keep]))
 
 
 def _mesh_key(obj):
@@ -89,10 +91,24 @@ def _face_normals(pos, tris):
 
 
 def _placed(inst):
-    """World-space (positions, corner normals, face normals) of an instance."""
-    pos, nrm = place(inst.mesh, inst.matrix)
-    nrm = np.where(np.isfinite(nrm), nrm, 0.0).astype(np.float32)
-    return pos, nrm, _face_normals(pos, inst.mesh.triangles)
+    """World-space (positions, corner normals, face normals) of an instance;
+    face normals from the object-space ones where the mesh has them (the
+    normal matrix keeps them exact up to rounding)."""
+    mesh = inst.mesh
+    pos, nrm = place(mesh, inst.matrix)
+    if not np.isfinite(nrm).all():
+        nrm = np.where(np.isfinite(nrm), nrm, 0.0).astype(np.float32)
+    if mesh.face_normals is None or len(mesh.face_normals) != len(mesh.triangles):
+        return pos, nrm, _face_normals(pos, mesh.triangles)
+    linear = np.asarray(inst.matrix, np.float64)[:3, :3]
+    if np.array_equal(linear, np.eye(3)):
+        return pos, nrm, mesh.face_normals
+    det = np.linalg.det(linear)
+    if not np.isfinite(det) or abs(det) < 1e-30:
+        return pos, nrm, _face_normals(pos, mesh.triangles)
+    # cross(Ma, Mb) = det(M) M^-T cross(a, b)
+    nm = (np.sign(det) * np.linalg.inv(linear).T).astype(np.float32)
+    return pos, nrm, unit_rows(mesh.face_normals @ nm.T)
 
 
 def camera_from_view(view_matrix, window_matrix):

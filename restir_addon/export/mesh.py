@@ -22,6 +22,7 @@ class MeshData:
     uvs: np.ndarray             # (T, 3, 2)
     slots: np.ndarray           # (T,) material slot index
     corners: dict = field(default_factory=dict)   # read_corner_data's, where a user reads it
+    face_normals: np.ndarray = None     # (T, 3) unit geometric normals, object space (when known)
 
 
 def _get(collection, attr, dtype, width, count):
@@ -59,7 +60,8 @@ def read_mesh(me):
         slots = poly_mat[tri_poly]
     else:
         slots = np.zeros(nt, np.int32)
-    return MeshData(pos, tri_vert.astype(np.int32), normals, uvs, slots.astype(np.int32))
+    return MeshData(pos, tri_vert.astype(np.int32, copy=False), normals, uvs,
+                    slots.astype(np.int32, copy=False))
 
 
 def _render_uv_layer(me):
@@ -157,6 +159,27 @@ def _generated(me, loops):
     orco = (pos - loc) / size * 0.5 + 0.5
     corner_vert = _get(me.attributes[".corner_vert"].data, "value", np.int32, 1, len(me.loops))
     return orco[corner_vert[loops]].astype(np.float32)
+
+
+def triangle_cross(positions, triangles):
+    """(T, 3) float32 cross products of each triangle's edges (twice its area
+    along its normal), gathered one coordinate at a time: several times
+    faster than positions[triangles] and np.cross on (T, 3) rows."""
+    cols = [np.ascontiguousarray(positions[:, k]) for k in range(3)]
+    i0, i1, i2 = (np.ascontiguousarray(triangles[:, k]) for k in range(3))
+    e1 = [c.take(i1) - c.take(i0) for c in cols]
+    e2 = [c.take(i2) - c.take(i0) for c in cols]
+    out = np.empty((len(triangles), 3), np.float32)
+    out[:, 0] = e1[1] * e2[2] - e1[2] * e2[1]
+    out[:, 1] = e1[2] * e2[0] - e1[0] * e2[2]
+    out[:, 2] = e1[0] * e2[1] - e1[1] * e2[0]
+    return out
+
+
+def unit_rows(v):
+    """Rows of v divided by their length (rows of zero length stay zero)."""
+    length = np.sqrt(v[:, 0] * v[:, 0] + v[:, 1] * v[:, 1] + v[:, 2] * v[:, 2])
+    return (v / np.maximum(length, 1e-30)[:, None]).astype(np.float32, copy=False)
 
 
 def place(mesh, matrix):
