@@ -18,6 +18,7 @@ import numpy as np
 
 _local = threading.local()
 MIN_PIXELS_PER_WORKER = 4096     # below this a pass runs on the calling thread
+MAX_PIXELS_PER_RANGE = 1 << 17   # above this a pass is split into more ranges than workers
 
 
 def in_worker():
@@ -32,21 +33,25 @@ def _mark_worker():
 class Workers:
     """A small pool that maps a function over contiguous pixel ranges."""
 
-    def __init__(self, threads=None):
+    def __init__(self, threads=None, max_range=MAX_PIXELS_PER_RANGE):
         self.threads = max(1, threads or min(os.cpu_count() or 1, 2))
+        self.max_range = max(1, int(max_range))
         self._pool = (ThreadPoolExecutor(self.threads, initializer=_mark_worker)
                       if self.threads > 1 else None)
 
     def ranges(self, n):
-        """Contiguous (start, stop) ranges covering [0, n), one per worker used."""
+        """Contiguous (start, stop) ranges covering [0, n): one per worker
+        used, or more where that keeps each under ``max_range`` pixels (the
+        temporaries of a pass are sized by its range, not by the image)."""
         parts = 1 if self._pool is None else max(1, min(self.threads, n // MIN_PIXELS_PER_WORKER))
+        parts = max(parts, -(-n // self.max_range))
         bounds = np.linspace(0, n, parts + 1).astype(np.int64)
         return [(int(a), int(b)) for a, b in zip(bounds[:-1], bounds[1:])]
 
     def map(self, fn, n):
         """[fn(start, stop) for each range of [0, n)], in range order."""
         parts = self.ranges(n)
-        if len(parts) == 1 or in_worker():
+        if self._pool is None or len(parts) == 1 or in_worker():
             return [fn(a, b) for a, b in parts]
         futures = [self._pool.submit(fn, a, b) for a, b in parts]
         # Every range finishes (or fails) before this returns or raises: a

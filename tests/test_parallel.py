@@ -3,6 +3,8 @@ pixel ranges changes nothing in the result, for path tracing and for every
 ReSTIR GI pass (each range uses the image-wide pixel index for its random
 numbers and reads neighbours from the whole image)."""
 
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -55,6 +57,27 @@ def test03_restir_is_the_same_on_two_workers(contexts, mode):
     assert a.history_found > 0.5
     for field in ("color", "direct", "indirect", "M", "W"):
         assert np.array_equal(getattr(a, field), getattr(b, field)), field
+
+
+@pytest.mark.parametrize("mode", [BIASED, UNBIASED])
+def test03b_many_small_ranges_give_the_same_image(contexts, mode):
+    """Passes split into many more ranges than workers (bounded temporaries
+    for large images) give the image of one range."""
+    serial, parallel = contexts
+    small = dataclasses.replace(parallel, workers=Workers(2, max_range=1500))
+    try:
+        assert len(small.workers.ranges(W * H)) == 7
+        settings = ReSTIRSettings(mode=mode, max_bounces=2, seed=9)
+        results = []
+        for ctx in (serial, small):
+            restir = ReSTIRGI()
+            results.append([restir.render_frame(ctx, settings, f) for f in range(3)][-1])
+        for field in ("color", "direct", "indirect", "M", "W"):
+            assert np.array_equal(getattr(results[0], field), getattr(results[1], field)), field
+        films = [render_frame(ctx, RenderSettings(samples=1, max_bounces=2, seed=3)) for ctx in (serial, small)]
+        assert np.array_equal(films[0].mean(), films[1].mean())
+    finally:
+        small.workers.close()
 
 
 def test04_a_failing_range_waits_for_the_others():
