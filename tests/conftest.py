@@ -42,3 +42,11 @@ def addon():
         spec.loader.exec_module(module)
         module.register()
     yield sys.modules[name]
+
+
+@pytest.fixture
+def reports(addon, monkeypatch):
+    """Every report the final render makes, as (type, message) in ``.log``
+    (addon_util.capture_reports)."""
+    from addon_util import capture_reports
+    return capture_reports(addon, monkeypatch)

@@ -5,13 +5,13 @@ lights the scene."""
 import numpy as np
 import pytest
 
-from test_addon_render import MODES, _FakeEngine, add_mesh, camera, fresh, rect, world
+from addon_util import MODES, FakeEngine, add_mesh, camera, fresh, rect, world
 
 
 def render(addon):
     """Combined (H, W, 4) of a final render through the engine's code."""
     import bpy
-    engine = _FakeEngine(["Combined", "Depth", "Normal", "Denoising Albedo"])
+    engine = FakeEngine(["Combined", "Depth", "Normal", "Denoising Albedo"])
     engine.is_animation = False
     addon.restir_addon.final.render(engine, bpy.context.evaluated_depsgraph_get())
     assert not [m for k, m in engine.log if k == "ERROR"], engine.log

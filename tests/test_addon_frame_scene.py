@@ -15,7 +15,7 @@ import re
 import numpy as np
 import pytest
 
-from test_addon_render import add_mesh, assert_valid, camera, fresh, rect, reports, world  # noqa: F401
+from addon_util import add_mesh, assert_valid, camera, fresh, rect, world
 from core.film import read_exr
 
 FRAMES = (1, 2, 3, 4)
