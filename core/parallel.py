@@ -68,16 +68,37 @@ class Workers:
 SERIAL = Workers(1)
 
 
-def concat_rows(parts):
-    """Concatenate per-range results: arrays, or dataclasses of arrays (same type)."""
-    first = parts[0]
+def concat_rows(parts, consume=False):
+    """Concatenate per-range results: arrays, or tuples or dataclasses of
+    arrays (same type). consume: ``parts`` is emptied as it is copied, so
+    each part's arrays are freed once in place and the peak stays near one
+    copy of the result (the parts must not be used afterwards)."""
     if len(parts) == 1:
-        return first
+        return parts[0]
+    first = parts[0]
     if isinstance(first, np.ndarray):
-        return np.concatenate(parts)
+        if not consume:
+            return np.concatenate(parts)
+        out = np.empty((sum(len(p) for p in parts),) + first.shape[1:], np.result_type(*parts))
+        del first
+        offset = 0
+        for i in range(len(parts)):
+            n = len(parts[i])
+            out[offset:offset + n] = parts[i]
+            parts[i] = None
+            offset += n
+        return out
     if first is None or np.isscalar(first) or isinstance(first, (str, list)):
         return first            # per-call constants (sizes, names) are the same in every part
     if isinstance(first, tuple):
-        return tuple(concat_rows([p[i] for p in parts]) for i in range(len(first)))
-    fields = first.__dataclass_fields__
-    return type(first)(**{f: concat_rows([getattr(p, f) for p in parts]) for f in fields})
+        columns = [[p[i] for p in parts] for i in range(len(first))]
+        kind = None
+    else:
+        names = list(first.__dataclass_fields__)
+        columns = [[getattr(p, f) for p in parts] for f in names]
+        kind = type(first)
+    del first
+    if consume:
+        parts.clear()           # the columns now hold the only references
+    joined = [concat_rows(c, consume) for c in columns]
+    return tuple(joined) if kind is None else kind(**dict(zip(names, joined)))

@@ -80,6 +80,32 @@ def test03b_many_small_ranges_give_the_same_image(contexts, mode):
         small.workers.close()
 
 
+def test03c_consuming_concatenation_matches_and_empties_the_parts():
+    """concat_rows(consume=True) gives what np.concatenate gives, for arrays,
+    tuples and dataclasses, and leaves nothing of the parts behind."""
+    from core.reservoirs import Reservoirs
+    rng = np.random.default_rng(3)
+
+    def parts():
+        out = []
+        for n in (5, 0, 7):
+            res = Reservoirs.empty(n)
+            res.w_sum[:] = rng.random(n)
+            out.append((np.arange(n) * 2, res))
+        return out
+
+    a, b = parts(), parts()
+    for x, y in zip(a, b):
+        y[1].w_sum[:] = x[1].w_sum
+    plain = concat_rows(a)
+    consumed_from = b
+    eaten = concat_rows(consumed_from, consume=True)
+    assert consumed_from == []
+    assert np.array_equal(plain[0], eaten[0])
+    for f in plain[1].__dataclass_fields__:
+        assert np.array_equal(getattr(plain[1], f), getattr(eaten[1], f)), f
+
+
 def test04_a_failing_range_waits_for_the_others():
     """An exception in one range (a cancelled trace) is raised only after every
     other range has finished, so nothing runs on after the call."""

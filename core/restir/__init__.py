@@ -200,7 +200,8 @@ class ReSTIRGI:
             spent("temporal", t)
             return prev, hold, direct, glossy, temporal, acc_prev
 
-        prev_pix, hold, direct, glossy, temporal, acc_pix = concat_rows(ctx.workers.map(new_samples, n))
+        prev_pix, hold, direct, glossy, temporal, acc_pix = concat_rows(ctx.workers.map(new_samples, n),
+                                                                          consume=True)
         ctx.accel.poll()    # the resampling passes trace no rays until shading
         if biased:      # the filter trades a little energy for stability: not in the unbiased mode
             boiling_filter(temporal, gb.width, gb.height, settings.boiling_filter)
@@ -239,11 +240,13 @@ class ReSTIRGI:
                     known = carried_visibility(np.take(history.visibility, q), from_prev, prev_owner,
                                                gb.p[a:b], spatial.x2)
             t = spent("spatial", t)
-            indirect, visibility = shade_indirect(ctx, gb.part(a, b), spatial, visible_own, known)
+            part = gb.part(a, b)
+            indirect, visibility = shade_indirect(ctx, part, spatial, visible_own, known)
+            alpha, keep = materials.camera_alpha(scene, b - a, part.index, part.surf)
             spent("shading", t)
-            return spatial, visibility, indirect
+            return spatial, visibility, indirect, alpha, keep
 
-        spatial, visibility, indirect = concat_rows(ctx.workers.map(reuse, n))
+        spatial, visibility, indirect, alpha_now, keep = concat_rows(ctx.workers.map(reuse, n), consume=True)
         if biased and settings.spatial:
             # A sample hidden from its pixel is not carried to the next frame
             # (RTXDI's "discard invisible samples"): with M up to the spatial
@@ -254,7 +257,6 @@ class ReSTIRGI:
             spatial.clear(visibility < 0)
         direct_total = gb.emission + direct
         indirect += glossy      # the glossy lobe's light, from this frame's own samples
-        alpha_now, keep = materials.camera_alpha(scene, len(gb.valid), gb.index, gb.surf)
         if (keep < 1).any():    # Holdout: the pixel's share cut out, colour and all
             direct_total, indirect = scale(direct_total, keep), scale(indirect, keep)
         for a in (direct_total, indirect):

@@ -18,8 +18,8 @@ from ..rows import gather, scatter, scatter_add
 class GBuffer:
     """One visible point per pixel; rows of misses hold zeros and valid False."""
     valid: np.ndarray       # (P,) bool
-    surf: SurfaceHits       # the valid rows only, in pixel order
-    frame: ShadingFrame     # BSDF parameters and shading frames of those rows
+    surf: SurfaceHits       # the valid rows only, in pixel order (None when split in parts)
+    frame: ShadingFrame     # BSDF parameters and shading frames of those rows (idem)
     index: np.ndarray       # (V,) pixel index of each valid row
     depth: np.ndarray       # (P,) view depth, 1e10 on misses
     object_id: np.ndarray   # (P,) int32, -1 on misses
@@ -78,8 +78,13 @@ def trace_gbuffer(ctx, seed, frame, pixel_filter, jitter=True):
     parts = ctx.workers.map(lambda a, b: _trace_rows(ctx, seed, frame, pixel_filter, jitter, a, b), n)
     if len(parts) == 1:
         return parts[0]
-    joined = concat_rows([dataclasses.replace(g, index=g.index + g.offset, offset=0) for g in parts])
-    joined.parts = dict(zip(ranges, parts))
+    # The whole image's per-pixel arrays; its hits and shading frames stay
+    # in the parts (passes read them per range), not copied a second time.
+    per_pixel = ("valid", "depth", "object_id", "emission", "albedo")
+    joined = GBuffer(**{f: concat_rows([getattr(g, f) for g in parts]) for f in per_pixel},
+                     surf=None, frame=None, index=np.concatenate([g.index + g.offset for g in parts]),
+                     width=parts[0].width, height=parts[0].height, offset=0,
+                     parts=dict(zip(ranges, parts)))
     return joined
 
 
