@@ -23,7 +23,7 @@ from ..core.environment import scene_environment
 from ..core.film import to_rgba
 from ..core.render import render_restir
 from ..core.restir import ReSTIRSettings
-from . import state
+from . import memory, state
 from .export.camera import render_size
 from .memory import SceneTooLarge
 from .passes import PASSES
@@ -111,6 +111,7 @@ def _render_path(engine, ctx, scene, result, width, height, export_s):
 
 
 def _render_restir(engine, ctx, scene, view_layer, width, height, export_s):
+    memory.check_image(width, height)
     settings = restir_settings(scene)
     stream = state.stream_for(scene.name, view_layer)
     frame = scene.frame_current

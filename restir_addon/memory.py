@@ -1,6 +1,6 @@
-"""Memory the scene will take, against what the machine has, checked before
-anything large is allocated: a scene too big stops with a report naming the
-numbers instead of being killed by the system.
+"""Memory a render will take, against what the machine has, checked before
+anything large is allocated: a scene or an image too big stops with a report
+naming the numbers instead of being killed by the system.
 
 Instances are flattened: every placed copy of a mesh gets its own world-space
 triangles in the combined arrays and the Embree scene (embreex offers no
@@ -19,6 +19,14 @@ BYTES_PER_VERTEX = 36
 # Share of the available memory the geometry may take (the rest: images,
 # reservoirs, Blender itself).
 BUDGET_SHARE = 0.6
+
+
+# Peak bytes per pixel of a ReSTIR GI frame on top of Blender itself: the state
+# kept between frames (core.restir.temporal.state_bytes_per_pixel, 295 bytes),
+# last frame's and this one's while it is built, and the passes' outputs and
+# temporaries (bench/bench_memory.py: 3.43 GB at 1920x1080 for an animation
+# frame, 1.6 KB per pixel; docs/memory.md).
+RESTIR_BYTES_PER_PIXEL = 1600
 
 
 class SceneTooLarge(Exception):
@@ -59,3 +67,19 @@ def check_geometry(triangles, vertices, instances, available=None):
         f"available (the limit is {BUDGET_SHARE:.0%} of it). Instances are not shared in memory by "
         "this engine: reduce the number of instances or their resolution (e.g. Simplify > Max "
         "Subdivision), or render on a machine with more memory.")
+
+
+def check_image(width, height, available=None):
+    """Raise SceneTooLarge if a ReSTIR GI render of width x height would not fit."""
+    available = available_bytes() if available is None else available
+    if available is None:
+        return
+    need = width * height * RESTIR_BYTES_PER_PIXEL
+    if need <= BUDGET_SHARE * available:
+        return
+    gb = 1024.0 ** 3
+    raise SceneTooLarge(
+        f"A {width}x{height} ReSTIR GI render needs about {need / gb:.1f} GB "
+        f"({RESTIR_BYTES_PER_PIXEL} bytes per pixel), and this machine has {available / gb:.1f} GB "
+        f"available (the limit is {BUDGET_SHARE:.0%} of it). Lower the resolution (Output "
+        "Properties > Format) or render in Path Tracing mode, which works in bounded chunks.")

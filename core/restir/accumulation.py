@@ -31,11 +31,14 @@ DEPTH_REL_MAX = 0.1
 STILL = 1 << 30             # cap for a still image: the plain mean of every frame
 
 
+COLUMNS = 14        # direct 3, indirect 3, albedo 3, normal 3, count 1, alpha 1
+
+
 @dataclass
 class Accumulation:
     """Running means per pixel (full-image rows) and the frames each holds,
     packed in one (P, 14) array so a history read is one gather per tap."""
-    data: np.ndarray        # (P, 14) float32: direct, indirect, albedo, normal, count, alpha
+    data: np.ndarray        # (P, COLUMNS) float32: direct, indirect, albedo, normal, count, alpha
 
     @property
     def direct(self):
@@ -235,7 +238,7 @@ def accumulate(prev, footprint, direct, indirect, albedo, normal, cap, alpha=1.0
     part) blended with this frame's values, over at most ``cap`` frames.
     prev: last frame's Accumulation (whole image) or None."""
     n = len(direct)
-    new = np.empty((n, 14), np.float32)
+    new = np.empty((n, COLUMNS), np.float32)
     new[:, 0:3], new[:, 3:6], new[:, 6:9], new[:, 9:12], new[:, 12] = direct, indirect, albedo, normal, 1.0
     new[:, 13] = alpha
     if prev is None or cap <= 1 or footprint is None:

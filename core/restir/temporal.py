@@ -14,6 +14,7 @@ from ..camera import project
 from ..reservoirs import Reservoirs, finalize, merge
 from ..sampling import dot
 from ..rows import gather
+from .accumulation import COLUMNS
 from .shift import J_MAX, J_MIN, jacobian, shift_weight, target_at
 
 NORMAL_COS_MIN = 0.9        # about 25 degrees
@@ -40,6 +41,20 @@ class FrameHistory:
     noise_hold: np.ndarray = None   # (P,) int8 frames left of "direct light noisy" (adaptive_direct)
     visibility: np.ndarray = None   # (P,) int8 spatial samples' visibility states (shading.py)
     accumulation: object = None     # running means of the shaded frames (accumulation.py)
+
+
+# Per pixel of the G-buffer history: p, n, ng (3 x float32 x 3), depth
+# (float32), valid (bool), object id (int32); noise hold and visibility (int8).
+_GBUFFER_BYTES = 3 * 3 * 4 + 4 + 1 + 4
+_FLAG_BYTES = 1 + 1
+
+
+def state_bytes_per_pixel(accumulating=True):
+    """Bytes per pixel of what a frame keeps for the next (FrameHistory):
+    the temporal and spatial reservoirs, the G-buffer history, two flags and,
+    when frames are accumulated, the running means (docs/memory.md)."""
+    return (2 * Reservoirs.empty(1).nbytes + _GBUFFER_BYTES + _FLAG_BYTES
+            + (COLUMNS * 4 if accumulating else 0))
 
 
 def _object_motions(scene, history):

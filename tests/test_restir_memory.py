@@ -1,0 +1,59 @@
+"""Memory of ReSTIR GI's state: the bytes per pixel a frame keeps for the
+next (docs/memory.md) match the arrays actually held, and the add-on refuses
+a resolution whose render would not fit, with a report and a valid image."""
+
+import numpy as np
+import pytest
+
+from core import RenderContext
+from core.restir import BIASED, UNBIASED, ReSTIRGI, ReSTIRSettings
+from core.restir.temporal import state_bytes_per_pixel
+from scenes import cornell_box
+
+
+@pytest.mark.parametrize("accumulate", [16, 1])
+@pytest.mark.parametrize("mode", [BIASED, UNBIASED])
+def test_state_size_matches_the_arrays_held(mode, accumulate):
+    scene = cornell_box("area", 40, 24)
+    ctx = RenderContext.build(scene)
+    try:
+        restir = ReSTIRGI()
+        settings = ReSTIRSettings(mode=mode, max_bounces=2, seed=1, accumulate=accumulate)
+        for f in range(2):
+            restir.render_frame(ctx, settings, f)
+        assert restir.nbytes == 40 * 24 * state_bytes_per_pixel(accumulating=accumulate > 1)
+    finally:
+        ctx.close()
+
+
+def test_documented_bytes_per_pixel():
+    """docs/memory.md states the figure this computes."""
+    from pathlib import Path
+    text = (Path(__file__).resolve().parent.parent / "docs" / "memory.md").read_text()
+    assert f"{state_bytes_per_pixel()} bytes per pixel" in text
+
+
+def test_a_render_too_large_is_refused_with_a_report(addon, reports, tmp_path, monkeypatch):
+    import bpy
+    from addon_util import add_mesh, camera, fresh, rect, world
+    scene = fresh(64, 48, samples=1, mode="RESTIR_BIASED")
+    scene.restir_gi.warmup_frames = 1
+    world((0.5, 0.5, 0.5))
+    add_mesh("Floor", *rect(-2, 2, -2, 2))
+    camera(location=(0, 0, 5), type="ORTHO", ortho_scale=4.0)
+    memory = addon.restir_addon.memory
+    monkeypatch.setattr(memory, "available_bytes", lambda: 1_000_000)
+    scene.render.image_settings.file_format = "OPEN_EXR"
+    scene.render.filepath = str(tmp_path / "big.exr")
+    with pytest.raises(RuntimeError):                   # bpy raises on an ERROR report
+        bpy.ops.render.render(write_still=True)
+    errors = reports.of("ERROR")
+    assert len(errors) == 1 and "64x48" in errors[0] and "GB" in errors[0], errors
+    # Blender stays usable: with the memory there, the same render works.
+    monkeypatch.setattr(memory, "available_bytes", lambda: 8 * 1024 ** 3)
+    reports.log.clear()
+    bpy.ops.render.render(write_still=True)
+    assert reports.of("ERROR") == []
+    from core.film import read_exr
+    img = read_exr(tmp_path / "big.exr")
+    assert img.shape[:2] == (48, 64) and np.isfinite(img).all() and img.mean() > 0
