@@ -32,10 +32,10 @@ class Recorder:
         accel.intersect_closest = self.intersect_closest
         accel.occluded = self.occluded
 
-    def intersect_closest(self, o, d, tmax=None):
+    def intersect_closest(self, o, d, tmax=None, camera=False):
         self.batches.append(("closest", np.array(o, np.float32), np.array(d, np.float32),
                              None if tmax is None else np.array(tmax, np.float32)))
-        return self._closest(o, d, tmax)
+        return self._closest(o, d, tmax, camera=camera)
 
     def occluded(self, o, d, tmax):
         self.batches.append(("occluded", np.array(o, np.float32), np.array(d, np.float32),

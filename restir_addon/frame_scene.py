@@ -49,10 +49,13 @@ class FrameScene(SceneSync):
         scene = depsgraph.scene
         persistent = bool(scene.render.use_persistent_data)
         pointer = depsgraph.as_pointer()
-        if self._instances is None or persistent != self._persistent:
+        fresh_depsgraph = persistent and pointer != self._depsgraph
+        if self._instances is None or persistent != self._persistent or fresh_depsgraph:
+            # Everything (a new depsgraph with Persistent Data has new data
+            # throughout, and its meshes are keyed by data).
             self._stable_keys = not persistent
-            self.sync(depsgraph)                        # everything
-        elif persistent and pointer == self._depsgraph:
+            self.sync(depsgraph)
+        elif persistent:
             self.sync(depsgraph, depsgraph.updates)     # what Blender flagged
         else:
             self._sync_compare(depsgraph)
