@@ -45,6 +45,8 @@ from ..core.dynamic_accel import TraceInterrupted
 from ..core.film import to_rgba
 from ..core.render import CHUNK_PIXELS, path_trace_pixels
 from ..core.restir import ReSTIRGI, ReSTIRSettings
+from . import memory
+from .memory import SceneTooLarge
 from .scene_sync import SceneSync
 from .viewport_sync import _same_camera
 from .viewport_state import Update, as_update  # noqa: F401 (re-exported for tests)
@@ -100,6 +102,7 @@ class ViewportSession(SceneSync):
         self._restir = ReSTIRGI()
         self._frame_index = 0
         self._divisor = None
+        self._fits = None               # (width, height, divisor) whose image was found to fit
         self._pixel_seconds = None      # measured seconds per pixel per frame
         self._accum = None              # running sum of frames since the last change
         self._accum_n = 0
@@ -233,6 +236,26 @@ class ViewportSession(SceneSync):
     def _should_abandon(self):
         return self._stop or self._abandon
 
+    def _fitting_divisor(self, divisor):
+        """``divisor``, or with the AUTO scale a coarser one, whose ReSTIR
+        image fits in memory (memory.check_image, checked once per image size:
+        the session's own buffers later lower what is available). Raises
+        SceneTooLarge when none fits; the status shows its message."""
+        w, h = self._size
+        if self.mode == PATH or self._fits == (w, h, divisor):
+            return divisor
+        candidates = [d for d in (1, 2, 4) if d >= divisor] if self.scale == "AUTO" else [divisor]
+        for d in candidates:
+            try:
+                memory.check_image((w + d - 1) // d, (h + d - 1) // d)
+            except SceneTooLarge:
+                if d == candidates[-1]:
+                    raise
+                continue
+            self._fits = (w, h, d)
+            return d
+        return divisor
+
     def _settings_changed(self):
         self._restir.reset()
         self._divisor = None
@@ -253,7 +276,7 @@ class ViewportSession(SceneSync):
             self._count_builds(*counts)
         if self.converged:
             return False
-        divisor = self._choose_divisor(budget)
+        divisor = self._fitting_divisor(self._choose_divisor(budget))
         if divisor != self._divisor:
             self._divisor = divisor
             self._build_context(False)

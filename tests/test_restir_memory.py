@@ -57,3 +57,33 @@ def test_a_render_too_large_is_refused_with_a_report(addon, reports, tmp_path, m
     from core.film import read_exr
     img = read_exr(tmp_path / "big.exr")
     assert img.shape[:2] == (48, 64) and np.isfinite(img).all() and img.mean() > 0
+
+
+def test_viewport_falls_back_to_a_coarser_scale_or_reports(addon, monkeypatch):
+    """The viewport's ReSTIR image must fit too: the AUTO scale goes coarser
+    until it does; a fixed scale that does not fit stops with the message."""
+    from addon_util import add_mesh, camera, fresh, rect, world
+    import bpy
+    fresh(64, 48, samples=1, mode="RESTIR_BIASED")
+    world((0.5, 0.5, 0.5))
+    add_mesh("Floor", *rect(-2, 2, -2, 2))
+    camera(location=(0, 0, 5), type="ORTHO", ortho_scale=4.0)
+    memory = addon.restir_addon.memory
+    per_pixel = memory.RESTIR_BYTES_PER_PIXEL
+    # Room for a quarter of the pixels and a little more, not for half of them.
+    monkeypatch.setattr(memory, "available_bytes",
+                        lambda: int(64 * 48 / 4 * per_pixel * 1.1 / memory.IMAGE_BUDGET_SHARE))
+    vp = addon.restir_addon.viewport
+    for scale, expected in (("AUTO", (32, 24)), ("FULL", None)):
+        session = vp.ViewportSession(mode="RESTIR_BIASED", scale=scale, threads=1, max_bounces=1)
+        session._divisor = 1                                # as if AUTO had gone fine
+        session.sync(bpy.context.evaluated_depsgraph_get())
+        try:
+            if expected is None:
+                with pytest.raises(memory.SceneTooLarge, match="64x48"):
+                    session.render_step()
+            else:
+                assert session.render_step()
+                assert session.render_size == expected
+        finally:
+            session.close()
