@@ -111,9 +111,9 @@ def _render_path(engine, ctx, scene, result, width, height, export_s):
 
 
 def _render_restir(engine, ctx, scene, view_layer, width, height, export_s):
-    memory.check_image(width, height)
-    settings = restir_settings(scene)
     stream = state.stream_for(scene.name, view_layer)
+    memory.check_image(width, height, held=stream.restir.nbytes)
+    settings = restir_settings(scene)
     frame = scene.frame_current
     camera = scene.camera.name if scene.camera is not None else None
     # Reuse continues only into the next frame of an animation seen by the same

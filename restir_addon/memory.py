@@ -72,11 +72,15 @@ def check_geometry(triangles, vertices, instances, available=None):
         "Subdivision), or render on a machine with more memory.")
 
 
-def check_image(width, height, available=None):
-    """Raise SceneTooLarge if a ReSTIR GI render of width x height would not fit."""
+def check_image(width, height, available=None, held=0):
+    """Raise SceneTooLarge if a ReSTIR GI render of width x height would not
+    fit. held: bytes of ReSTIR state this process already holds for the render
+    (last frame's, part of the figure per pixel): it counts as available, so
+    an animation that fitted at its first frame is not refused later."""
     available = available_bytes() if available is None else available
     if available is None:
         return
+    available += held
     need = width * height * RESTIR_BYTES_PER_PIXEL
     if need <= IMAGE_BUDGET_SHARE * available:
         return

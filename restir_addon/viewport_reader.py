@@ -11,7 +11,7 @@ import bpy
 import numpy as np
 
 from ..core.scene import Lights
-from .export import instance_key
+from .export import film_transparent, instance_key, ray_visibility
 from .export.camera import export_camera, render_size
 from .export.lights import is_supported, light_row, row_signature
 from .export.materials import MaterialTable
@@ -90,7 +90,7 @@ class SceneReader:
         self._walk(depsgraph, None, None, compare=self._stable_keys)
         world = self._read_world(scene, force=True)
         self._filter_width_read = float(scene.render.filter_size)
-        self._film_read = _film_transparent(scene)
+        self._film_read = film_transparent(scene)
         changes = dict(materials=self._materials.snapshot(), world=world,
                        filter_width=self._filter_width_read, film_transparent=self._film_read,
                        full=True)
@@ -158,7 +158,7 @@ class SceneReader:
             while key in instances:     # the same key twice: keep both, numbered
                 key = key + (len(instances),)
             instances[key] = _Instance(mesh, np.array(inst.matrix_world, np.float64), slot_ids,
-                                       tuple(obj.color), _visibility(obj))
+                                       tuple(obj.color), ray_visibility(obj))
             if _animated(inst.parent if inst.is_instance else obj):
                 animated.add(key)
         for mkey in set(self._meshes) - used_meshes:
@@ -199,9 +199,9 @@ class SceneReader:
     def _mesh_differs(self, mkey, obj):
         """compare mode: whether an object's evaluated mesh differs from the
         one read under ``mkey`` (counts, then vertex positions)."""
-        mesh = self._meshes.get(mkey)
         if mkey not in self._meshes or obj.type != "MESH":
             return True
+        mesh = self._meshes[mkey]
         if self._mesh_counts.get(mkey) != _counts(obj):
             return True
         if mesh is None:
@@ -220,7 +220,7 @@ class SceneReader:
         if fw != self._filter_width_read:
             self._filter_width_read = fw
             self._queue(filter_width=fw)
-        film = _film_transparent(scene)
+        film = film_transparent(scene)
         if film != self._film_read:
             self._film_read = film
             self._queue(film_transparent=film)
@@ -232,16 +232,6 @@ class SceneReader:
             self._world = graph_sig
             return (build(),)
         return None
-
-
-def _visibility(obj):
-    """Ray visibility of an object: camera, shadow, other rays (Diffuse)."""
-    return (bool(getattr(obj, "visible_camera", True)), bool(getattr(obj, "visible_shadow", True)),
-            bool(getattr(obj, "visible_diffuse", True)))
-
-
-def _film_transparent(scene):
-    return bool(getattr(scene.render, "film_transparent", False))
 
 
 def _counts(obj):

@@ -87,3 +87,14 @@ def test_viewport_falls_back_to_a_coarser_scale_or_reports(addon, monkeypatch):
                 assert session.render_size == expected
         finally:
             session.close()
+
+
+def test_state_already_held_counts_as_available(addon):
+    """Frame 2 of an animation holds frame 1's state, which the per-pixel
+    figure already includes: it must not be refused for it."""
+    memory = addon.restir_addon.memory
+    need = 100 * 100 * memory.RESTIR_BYTES_PER_PIXEL
+    short = int(need / memory.IMAGE_BUDGET_SHARE) - 10_000
+    with pytest.raises(memory.SceneTooLarge):
+        memory.check_image(100, 100, available=short)
+    memory.check_image(100, 100, available=short, held=100 * 100 * state_bytes_per_pixel())

@@ -66,6 +66,18 @@ def object_random(key):
     return int.from_bytes(digest, "little") / 2.0 ** 32
 
 
+def ray_visibility(obj):
+    """Object > Visibility > Ray Visibility: (camera, shadow, other rays; the
+    Diffuse toggle stands for glossy and transmission too)."""
+    return (bool(getattr(obj, "visible_camera", True)), bool(getattr(obj, "visible_shadow", True)),
+            bool(getattr(obj, "visible_diffuse", True)))
+
+
+def film_transparent(scene):
+    """Render Properties > Film > Transparent."""
+    return bool(getattr(scene.render, "film_transparent", False))
+
+
 def instance_key(inst, obj):
     """Identity of a placed object that stays the same from frame to frame (for
     motion between frames): its name, plus the instancer's persistent id."""
@@ -118,9 +130,7 @@ def export_scene(depsgraph, width=None, height=None):
             object_index[key] = len(object_index)
             object_matrices.append(np.array(inst.matrix_world, np.float32))
             object_colors.append(tuple(obj.color))
-            visibility.append((bool(getattr(obj, "visible_camera", True)),
-                               bool(getattr(obj, "visible_shadow", True)),
-                               bool(getattr(obj, "visible_diffuse", True))))
+            visibility.append(ray_visibility(obj))
         oids.append(np.full(len(mesh.triangles), object_index[key], np.int32))
         offset += len(pos)
 
@@ -146,7 +156,7 @@ def export_scene(depsgraph, width=None, height=None):
         corner_data=corner_data(corners, tris),
     )
     scene.environment = world
-    scene.film_transparent = bool(getattr(bscene.render, "film_transparent", False))
+    scene.film_transparent = film_transparent(bscene)
     scene.shaders = materials.graphs
     scene.images = materials.images.images
     scene.object_info = {"Color": np.asarray([c[:3] for c in object_colors] or np.zeros((0, 3)), np.float32),
