@@ -92,10 +92,13 @@ def pin_camera(scene, frame):
     scene.frame_set(frame)
 
 
-def render_frames(blend, frames, setup, pin=None, log_path=None):
+def render_frames(blend, frames, setup, pin=None, log_path=None, scene_start=None):
     """Open ``blend``, optionally pin its camera at frame ``pin``, call
     ``setup(scene)``, and render ``frames`` (consecutive) as a user does:
-    ``bpy.ops.render.render(animation=True)`` into 32-bit OpenEXR files.
+    ``bpy.ops.render.render(animation=True)`` into 32-bit OpenEXR files. The
+    scene's frame range becomes ``frames``, or with ``scene_start`` keeps its
+    end and starts there while the job covers ``frames`` (as
+    ``blender -f A..B``: a chunk of a farm render).
 
     Returns ({frame: (H, W, 3) linear image, bottom row first},
     {frame: seconds from render_pre to render_post}, [report lines])."""
@@ -118,7 +121,11 @@ def render_frames(blend, frames, setup, pin=None, log_path=None):
         if pin is not None:
             pin_camera(scene, pin)
         setup(scene)
-        scene.frame_start, scene.frame_end, scene.frame_step = frames[0], frames[-1], 1
+        if scene_start is None:
+            scene.frame_start, scene.frame_end, scene.frame_step = frames[0], frames[-1], 1
+        else:
+            scene.frame_start, scene.frame_step = scene_start, 1
+            scene.frame_end = max(scene.frame_end, frames[-1])
         r = scene.render
         r.use_file_extension, r.use_overwrite, r.use_placeholder = True, True, False
         s = r.image_settings
@@ -127,7 +134,8 @@ def render_frames(blend, frames, setup, pin=None, log_path=None):
         bpy.app.handlers.render_pre.append(pre)
         bpy.app.handlers.render_post.append(post)
         try:
-            result = bpy.ops.render.render(animation=True, scene=scene.name)
+            result = bpy.ops.render.render(animation=True, scene=scene.name,
+                                           frame_start=frames[0], frame_end=frames[-1])
         finally:
             bpy.app.handlers.render_pre.remove(pre)
             bpy.app.handlers.render_post.remove(post)

@@ -7,7 +7,11 @@ Path tracing accumulates ``samples`` passes per frame. The ReSTIR GI modes run
 ``samples`` frames of resampling per animation frame, carrying reservoirs and
 each pixel's running mean from the previous frame (state.py); a still render,
 or a frame that does not follow the last one rendered, runs ``warmup_frames``
-frames on the still scene and writes their mean (core/render.py).
+frames on the still scene and writes their mean (core/render.py). An
+animation render that starts after the scene's first frame (a chunk of a farm
+render) first runs the ``chunk_warmup_frames`` frames before it along the
+animation, writing nothing, as if the animation had started there
+(``_chunk_warmup``).
 
 Every failure becomes a report and a valid (black or partial) result; the
 render never dies with a traceback.
@@ -110,18 +114,72 @@ def _render_path(engine, ctx, scene, result, width, height, export_s):
     return film_images(film)
 
 
+def _camera_name(scene):
+    return scene.camera.name if scene.camera is not None else None
+
+
+def _follows(engine, stream, scene):
+    """Reuse continues only into the next frame of an animation seen by the
+    same camera: a jump in time or a cut to another camera (timeline markers)
+    starts over, with the warm-up of a first frame."""
+    return (engine.is_animation and stream.last_frame is not None
+            and scene.frame_current == stream.last_frame + 1
+            and stream.restir.history is not None and _camera_name(scene) == stream.last_camera)
+
+
+def _chunk_warmup(engine, depsgraph, stream, width, height):
+    """The first frame N of an animation render that starts after the scene's
+    first frame: render frames max(frame_start, N - chunk_warmup_frames) ..
+    N - 1 along the animation (the scene evaluated at each, so reprojection
+    follows the real motion) and write nothing, so frame N continues from the
+    history a render started at that frame would have. Reaching back to
+    frame_start, the frames are those of the continuous render, random numbers
+    included. Returns False if cancelled."""
+    scene = depsgraph.scene
+    frame = scene.frame_current
+    first = max(scene.frame_start, frame - scene.restir_gi.chunk_warmup_frames)
+    if first >= frame:
+        return True
+    memory.check_image(width, height, held=stream.restir.nbytes)
+    settings = restir_settings(scene)
+    frame_scene = stream.frame_scene
+    stream.restir.reset()
+    stream.last_frame = None
+    start = time.perf_counter()
+    try:
+        for f in range(first, frame):
+            if engine.test_break():
+                return False
+            engine.frame_set(f, 0.0)
+            if not frame_scene.update(depsgraph, width, height) or frame_scene.context is None:
+                stream.restir.reset()
+                stream.last_frame = None
+                continue
+            fresh = stream.last_frame is None
+            frames = scene.restir_gi.warmup_frames if fresh else scene.restir_gi.samples
+            engine.update_stats("", f"Frame {frame} | chunk warm-up: frame {f} "
+                                    f"({f - first + 1}/{frame - first}) "
+                                    f"| {time.perf_counter() - start:.1f} s")
+            out = render_restir(frame_scene.context, stream.restir, settings, f, frames,
+                                fresh=fresh, should_stop=engine.test_break)
+            if out is None:
+                stream.restir.reset()
+                stream.last_frame = None
+                return False
+            stream.last_frame, stream.last_camera = f, _camera_name(scene)
+    finally:
+        engine.frame_set(frame, 0.0)
+        frame_scene.update(depsgraph, width, height)
+    return True
+
+
 def _render_restir(engine, ctx, scene, view_layer, width, height, export_s):
     stream = state.stream_for(scene.name, view_layer)
     memory.check_image(width, height, held=stream.restir.nbytes)
     settings = restir_settings(scene)
     frame = scene.frame_current
-    camera = scene.camera.name if scene.camera is not None else None
-    # Reuse continues only into the next frame of an animation seen by the same
-    # camera: a jump in time or a cut to another camera (timeline markers)
-    # starts over, with the warm-up of a first frame.
-    follows = (engine.is_animation and stream.last_frame is not None
-               and frame == stream.last_frame + 1 and stream.restir.history is not None
-               and camera == stream.last_camera)
+    camera = _camera_name(scene)
+    follows = _follows(engine, stream, scene)
     if not follows:
         stream.restir.reset()
     frames = scene.restir_gi.samples if follows else scene.restir_gi.warmup_frames
@@ -179,6 +237,11 @@ def render(engine, depsgraph):
         if scene.restir_gi.mode == "PATH":
             images = _render_path(engine, ctx, scene, result, width, height, export_s)
         else:
+            if engine.is_animation and not _follows(engine, stream, scene):
+                if not _chunk_warmup(engine, depsgraph, stream, width, height):
+                    engine.report({"INFO"}, "Render cancelled during the chunk warm-up")
+                    return
+                ctx = frame_scene.context
             images = _render_restir(engine, ctx, scene, depsgraph.view_layer.name, width, height,
                                     export_s)
         render_s = time.perf_counter() - t1

@@ -18,6 +18,9 @@ two-part Embree scene between frames and applies only what changed:
 A moved object keeps its triangles and goes to the small dynamic Embree scene
 (core/dynamic_accel.py); a deformed mesh is read again alone; a material,
 light or world change never touches geometry.
+
+Threads: Render > Performance > Threads (``blender -t N``) when set to Fixed,
+otherwise both cores (core/parallel.py); a change re-exports the scene.
 """
 
 import time
@@ -48,6 +51,10 @@ class FrameScene(SceneSync):
         t0 = time.perf_counter()
         scene = depsgraph.scene
         persistent = bool(scene.render.use_persistent_data)
+        threads = scene.render.threads if scene.render.threads_mode == "FIXED" else None
+        if threads != self.threads:
+            self.release()
+            self.threads = threads
         pointer = depsgraph.as_pointer()
         fresh_depsgraph = persistent and pointer != self._depsgraph
         if self._instances is None or persistent != self._persistent or fresh_depsgraph:

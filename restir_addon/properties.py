@@ -40,6 +40,13 @@ class RestirGISceneSettings(bpy.types.PropertyGroup):
                     "(at most 8) has filled the reservoirs",
         default=32, min=1, soft_max=128, max=4096,
     )
+    chunk_warmup_frames: IntProperty(
+        name="Chunk Warm-up", default=16, min=0, soft_max=64, max=4096,
+        description="ReSTIR GI: an animation render that starts after the scene's first frame (a "
+                    "chunk on a render farm, or a resumed render) first renders up to this many "
+                    "preceding frames along the animation, without writing them, so its first frame "
+                    "has the history a continuous render would have (0 = start cold)",
+    )
     accumulate_frames: IntProperty(
         name="Accumulation", default=16, min=1, soft_max=64, max=4096,
         description="ReSTIR GI: frames in each pixel's running mean, carried through reprojection "

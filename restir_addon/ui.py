@@ -39,6 +39,7 @@ class RESTIR_RENDER_PT_sampling(RestirButtonsPanel, bpy.types.Panel):
         col.prop(settings, "samples", text="Samples" if settings.mode == "PATH" else "Frames per Frame")
         if settings.mode != "PATH":
             col.prop(settings, "warmup_frames")
+            col.prop(settings, "chunk_warmup_frames")
             col.prop(settings, "accumulate_frames")
         col.prop(settings, "seed")
 

@@ -7,8 +7,9 @@ The bpy-module equivalent of
     blender -b FILE.blend -E RESTIR_GI -f N       (one frame, --frame N)
 
 Usage:
-    python tools/render.py FILE.blend [--frame N] [--output DIR] [--samples N]
-                           [--package ZIP] [--user-resources DIR]
+    python tools/render.py FILE.blend [--frame N | --frames A-B] [--output DIR]
+                           [--samples N] [--chunk-warmup N] [--threads N]
+                           [--skip-existing] [--package ZIP] [--user-resources DIR]
 
 What it does:
 1. Points ``BLENDER_USER_RESOURCES`` at ``<repo>/.blender_user`` (or
@@ -22,11 +23,17 @@ What it does:
    from the installed package, never from the source tree, and its Python
    dependencies from the wheels bundled in the package.
 3. Opens the .blend file, selects the RESTIR_GI engine and renders every frame
-   of the scene's frame range (or only --frame N), writing for each frame
+   of the scene's frame range (or only --frame N, or --frames A-B as
+   ``blender -f A..B`` does: one animation job over A..B, the scene's own
+   frame range unchanged, so a ReSTIR render that starts after the scene's
+   first frame runs its chunk warm-up), writing for each frame
    ``DIR/frame_####.exr`` (multilayer OpenEXR, 32-bit float, linear, all
    passes) and ``DIR/frame_####.png`` (8-bit RGBA through the scene's view
    transform, as Blender writes a PNG). DIR defaults to ``<repo>/out/<blend
-   name>``.
+   name>``. Both files of a frame are written under ``DIR/.partial/`` first
+   and renamed into DIR once complete, so a render killed mid-frame leaves no
+   truncated frame. With --skip-existing, frames whose two files are already
+   in DIR are not rendered again (a rerun resumes).
 
 Progress (frame number, time per frame, files written) goes to stdout.
 Exit status: 0 on success, 2 on bad arguments or missing files, 1 when the
@@ -71,6 +78,16 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     parser.add_argument("blend", help=".blend file to render")
     parser.add_argument("--frame", type=int, default=None,
                         help="render only this frame (like blender -f N); default: the whole frame range (-a)")
+    parser.add_argument("--frames", default=None, metavar="A-B",
+                        help="render frames A to B as one animation job (like blender -f A..B), "
+                             "keeping the scene's frame range")
+    parser.add_argument("--skip-existing", action="store_true",
+                        help="do not render frames whose EXR and PNG are already in the output directory")
+    parser.add_argument("--chunk-warmup", type=int, default=None, metavar="N",
+                        help="override scene.restir_gi.chunk_warmup_frames (frames rendered, not "
+                             "written, before a range that starts after the scene's first frame)")
+    parser.add_argument("--threads", type=int, default=None, metavar="N",
+                        help="render threads (like blender -t N); default: the file's setting")
     parser.add_argument("--output", default=None,
                         help="output directory (default: <repo>/out/<blend name>)")
     parser.add_argument("--samples", type=int, default=None,
@@ -84,7 +101,43 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     args = parser.parse_args(argv)
     if args.samples is not None and args.samples < 1:
         parser.error("--samples must be at least 1")
+    if args.chunk_warmup is not None and args.chunk_warmup < 0:
+        parser.error("--chunk-warmup must be at least 0")
+    if args.threads is not None and args.threads < 1:
+        parser.error("--threads must be at least 1")
+    if args.frame is not None and args.frames is not None:
+        parser.error("give --frame or --frames, not both")
+    if args.frame is not None:
+        args.range = (args.frame, args.frame)
+    elif args.frames is not None:
+        args.range = parse_range(args.frames)
+        if args.range is None:
+            parser.error("--frames wants A-B (or A..B) with A <= B, e.g. 1-24")
+    else:
+        args.range = None
     return args
+
+
+def parse_range(text: str) -> tuple[int, int] | None:
+    """'A-B', 'A..B' or 'A' -> (A, B); None if malformed or empty."""
+    import re
+    m = re.fullmatch(r"\s*(-?\d+)\s*(?:(?:-|\.\.)\s*(-?\d+)\s*)?", text)
+    if m is None:
+        return None
+    a = int(m.group(1))
+    b = int(m.group(2)) if m.group(2) is not None else a
+    return (a, b) if a <= b else None
+
+
+def runs(frames: list[int], step: int) -> list[tuple[int, int]]:
+    """Consecutive frames (``step`` apart) grouped into (first, last) runs."""
+    out: list[tuple[int, int]] = []
+    for f in frames:
+        if out and f == out[-1][1] + step:
+            out[-1] = (out[-1][0], f)
+        else:
+            out.append((f, f))
+    return out
 
 
 def extension_id_and_zip() -> tuple[str, str]:
@@ -101,6 +154,29 @@ def extension_site_packages(user_resources: str) -> str:
     return os.path.join(
         user_resources, "extensions", ".local", "lib",
         "python{}.{}".format(*sys.version_info[:2]), "site-packages")
+
+
+class install_lock:
+    """Only one render at a time installs the package into a user folder
+    (farm chunks start together); a no-op where fcntl is missing."""
+
+    def __init__(self, user_resources: str):
+        self.path = os.path.join(user_resources, ".install.lock")
+
+    def __enter__(self):
+        try:
+            import fcntl
+        except ImportError:
+            self.fh = None
+            return self
+        os.makedirs(os.path.dirname(self.path), exist_ok=True)
+        self.fh = open(self.path, "w")
+        fcntl.flock(self.fh, fcntl.LOCK_EX)
+        return self
+
+    def __exit__(self, *exc):
+        if self.fh is not None:
+            self.fh.close()     # releases the lock
 
 
 def install_or_enable(bpy, pkg_id: str, zip_path: str, user_resources: str) -> str:
@@ -161,7 +237,8 @@ def main(argv: list[str] | None = None) -> int:
     t_start = time.perf_counter()
     import bpy  # noqa: E402  (must follow the environment set-up above)
 
-    module = install_or_enable(bpy, pkg_id, zip_path, user_resources)
+    with install_lock(user_resources):
+        module = install_or_enable(bpy, pkg_id, zip_path, user_resources)
     log("engine {} from {} ({})".format(ENGINE_ID, module, show(os.path.join(
         bpy.utils.user_resource('EXTENSIONS'), REPO_MODULE, pkg_id))))
 
@@ -173,13 +250,31 @@ def main(argv: list[str] | None = None) -> int:
         die("could not select the render engine {}".format(ENGINE_ID), 1)
     if args.samples is not None:
         scene.restir_gi.samples = args.samples
+    if args.chunk_warmup is not None:
+        scene.restir_gi.chunk_warmup_frames = args.chunk_warmup
+    if args.threads is not None:
+        render.threads_mode = 'FIXED'
+        render.threads = args.threads
 
-    if args.frame is not None:
-        scene.frame_start = scene.frame_end = args.frame
-    frames = list(range(scene.frame_start, scene.frame_end + 1, max(1, scene.frame_step)))
+    step = max(1, scene.frame_step)
+    first, last = args.range if args.range is not None else (scene.frame_start, scene.frame_end)
+    frames = list(range(first, last + 1, step))
 
-    os.makedirs(out_dir, exist_ok=True)
-    render.filepath = os.path.join(out_dir, "frame_####")
+    def final_paths(frame: int) -> list[str]:
+        return [os.path.join(out_dir, "frame_{:04d}.{}".format(frame, ext)) for ext in ("exr", "png")]
+
+    skipped = []
+    if args.skip_existing:
+        skipped = [f for f in frames if all(os.path.isfile(p) for p in final_paths(f))]
+        if skipped:
+            log("{} of {} frames already in {}: skipped".format(len(skipped), len(frames), show(out_dir)))
+    todo = [f for f in frames if f not in skipped]
+
+    # Frames are written under .partial/ and renamed into out_dir once both
+    # files are complete: a render killed mid-frame leaves no truncated frame.
+    partial_dir = os.path.join(out_dir, ".partial")
+    os.makedirs(partial_dir, exist_ok=True)
+    render.filepath = os.path.join(partial_dir, "frame_####")
     render.use_file_extension = True
     render.use_overwrite = True
     render.use_placeholder = False
@@ -198,24 +293,27 @@ def main(argv: list[str] | None = None) -> int:
 
     def on_render_write(scene, *_args):
         # Called right after Blender wrote the EXR of this frame: save the same
-        # Render Result again as a PNG, then restore the EXR settings for the
-        # next frame.
+        # Render Result again as a PNG, restore the EXR settings for the next
+        # frame, then move both files into place.
         frame = scene.frame_current
-        exr_path = scene.render.frame_path(frame=frame)
+        exr_tmp = scene.render.frame_path(frame=frame)
         settings = scene.render.image_settings
         settings.media_type = 'IMAGE'
         settings.file_format = 'PNG'
         settings.color_mode = 'RGBA'
         settings.color_depth = '8'
         try:
-            png_path = scene.render.frame_path(frame=frame)
-            bpy.data.images['Render Result'].save_render(png_path, scene=scene)
+            png_tmp = scene.render.frame_path(frame=frame)
+            bpy.data.images['Render Result'].save_render(png_tmp, scene=scene)
         finally:
             (settings.media_type, settings.file_format,
              settings.color_depth, settings.color_mode) = exr_settings
+        exr_path, png_path = final_paths(frame)
+        os.replace(png_tmp, png_path)
+        os.replace(exr_tmp, exr_path)
         written[frame] = [exr_path, png_path]
         log("frame {} ({}/{}): {:.2f} s -> {}, {}".format(
-            frame, len(written), len(frames), time.perf_counter() - frame_t0[0],
+            frame, len(written), len(todo), time.perf_counter() - frame_t0[0],
             show(exr_path), show(png_path)))
 
     # Blender prints a Python exception raised by the engine (or by a handler)
@@ -236,32 +334,38 @@ def main(argv: list[str] | None = None) -> int:
     bpy.app.handlers.render_write.append(on_render_write)
 
     log("rendering {} ({} frame{} {}..{}, {}x{} at {}%) into {}".format(
-        show(blend), len(frames), "" if len(frames) == 1 else "s",
-        frames[0] if frames else "-", frames[-1] if frames else "-",
+        show(blend), len(todo), "" if len(todo) == 1 else "s",
+        todo[0] if todo else "-", todo[-1] if todo else "-",
         render.resolution_x, render.resolution_y, render.resolution_percentage,
         show(out_dir)))
     t_render = time.perf_counter()
     sys.excepthook = excepthook
     try:
-        result = bpy.ops.render.render(animation=True, scene=scene.name)
+        # One animation job per run of missing frames, like blender -f A..B:
+        # the scene's frame range stays as saved.
+        for a, b in runs(todo, step):
+            result = bpy.ops.render.render(animation=True, scene=scene.name,
+                                           frame_start=a, frame_end=b)
+            if result != {'FINISHED'}:
+                die("render did not finish: {}".format(result), 1)
     except RuntimeError as ex:
         die("render failed: {}".format(ex), 1)
     finally:
         sys.excepthook = default_excepthook
-    if result != {'FINISHED'}:
-        die("render did not finish: {}".format(result), 1)
+    try:
+        os.rmdir(partial_dir)
+    except OSError:
+        pass
 
-    missing = [path for frame in frames for path in written.get(frame, [
-        os.path.join(out_dir, "frame_{:04d}.exr".format(frame)),
-        os.path.join(out_dir, "frame_{:04d}.png".format(frame))]) if not os.path.isfile(path)]
-    missing += ["frame {} (never written)".format(f) for f in frames if f not in written]
+    missing = [path for frame in frames for path in final_paths(frame) if not os.path.isfile(path)]
+    missing += ["frame {} (never written)".format(f) for f in todo if f not in written]
     if missing:
         die("missing output: " + ", ".join(missing), 1)
 
     elapsed = time.perf_counter() - t_render
     log("done: {} frame{} in {:.2f} s ({:.2f} s per frame; {:.2f} s including start-up)".format(
-        len(frames), "" if len(frames) == 1 else "s", elapsed,
-        elapsed / max(1, len(frames)), time.perf_counter() - t_start))
+        len(todo), "" if len(todo) == 1 else "s", elapsed,
+        elapsed / max(1, len(todo)), time.perf_counter() - t_start))
     return 0
 
 
