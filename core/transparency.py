@@ -1,6 +1,7 @@
 """Surfaces rays pass through: transparent materials (Transparent BSDF,
 Principled Alpha) and objects hidden from some rays (Blender's ray visibility:
-camera, shadow, and diffuse for every other ray).
+camera, shadow, and diffuse, glossy or transmission for the rays of paths by
+the kind of their bounce).
 
 A hit on a material that can be transparent lets the ray through with the
 probability of its transparent share t (the mean of the closure's transparent
@@ -15,14 +16,16 @@ The choice is made with a hash of the triangle, the point on it, the
 distance along the ray and the surface count: deterministic (a path re-traced with its seed finds
 the same surfaces, as ReSTIR's validation needs) yet uncorrelated between
 rays. An object hidden from a kind of ray is passed by every ray of that
-kind: camera rays (Camera visibility), shadow rays (Shadow), the other rays
-of paths and ReSTIR's reconnections (Diffuse). ``TransparentAccel`` wraps an
+kind: camera rays (Camera visibility), shadow rays (Shadow), the rays of
+paths by their kind (Diffuse, Glossy, Transmission: integrators/bounces.py)
+and ReSTIR's reconnections (Diffuse). ``TransparentAccel`` wraps an
 acceleration structure and is used only for scenes that have such materials
 or objects; others trace as before.
 """
 
 import numpy as np
 
+from .integrators.bounces import KIND_NAMES
 from .interaction import surface_hits
 
 MAX_TRANSPARENT = 8
@@ -58,17 +61,31 @@ class TransparentAccel:
         self.pass_probability = pass_probability   # fn(scene, surf) -> (N,)
         # (T,) bool per kind of ray: triangles of objects hidden from it.
         none = np.zeros(len(transparent_triangles), bool)
-        self.hidden = {kind: none for kind in ("camera", "shadow", "other")}
+        self.hidden = {kind: none for kind in ("camera", "shadow") + KIND_NAMES}
         self.hidden.update(hidden or {})
         self.step = _STEP * np.float32(scene.extent())
+        # Rays of paths pick diffuse, glossy or transmission visibility by
+        # their kind (integrators/bounces.py) where the objects differ in them.
+        per_kind = [self.hidden[k] for k in KIND_NAMES]
+        self.per_kind_visibility = any((h != per_kind[0]).any() for h in per_kind[1:])
+        self._hidden_by_kind = np.stack(per_kind) if self.per_kind_visibility else None
 
     def __getattr__(self, name):
         return getattr(self.inner, name)
 
-    def intersect_closest(self, origins, directions, tmax=None, camera=False):
-        return self._closest(origins, directions, tmax, self.hidden["camera" if camera else "other"])
+    def intersect_closest(self, origins, directions, tmax=None, camera=False, kinds=None):
+        """Closest hits of camera rays, or of path rays of the given kinds
+        (diffuse where None)."""
+        if camera:
+            return self._closest(origins, directions, tmax, self.hidden["camera"])
+        if kinds is None or self._hidden_by_kind is None:
+            return self._closest(origins, directions, tmax, self.hidden["diffuse"])
+        return self._closest(origins, directions, tmax, self._hidden_by_kind.any(axis=0),
+                             lambda rows, prim: self._hidden_by_kind[kinds[rows], prim])
 
-    def _closest(self, origins, directions, tmax, hidden):
+    def _closest(self, origins, directions, tmax, hidden, hidden_at=None):
+        """hidden: (T,) triangles some of the rays pass; hidden_at(rows, prim):
+        which of those rays pass their hit triangles (all of them if None)."""
         o = np.ascontiguousarray(origins, np.float32).reshape(-1, 3)
         d = np.ascontiguousarray(directions, np.float32).reshape(-1, 3)
         hits = self.inner.intersect_closest(o, d, tmax)
@@ -82,7 +99,7 @@ class TransparentAccel:
             rows = rows[hits.hit[rows] & np.take(stop_flag, np.maximum(hits.prim[rows], 0))]
             if len(rows) == 0:
                 break
-            go = np.take(hidden, hits.prim[rows])
+            go = np.take(hidden, hits.prim[rows]) if hidden_at is None else hidden_at(rows, hits.prim[rows])
             if not go.all():
                 maybe = np.nonzero(~go)[0]
                 go[maybe] = self._passes(o, d, hits, rows[maybe], k)
@@ -122,7 +139,8 @@ class TransparentAccel:
 def wrap(accel, scene):
     """accel, wrapped in a TransparentAccel when the scene has materials that
     can be transparent or objects hidden from some rays
-    (``scene.ray_visibility``: (O, 3) bool, camera / shadow / other rays)."""
+    (``scene.ray_visibility``: (O, 5) bool, camera / shadow / diffuse / glossy /
+    transmission rays; (O, 3) gives diffuse for all three)."""
     from .materials import shading, transparency   # noqa: PLC0415
     if scene.triangle_count == 0:
         return accel
@@ -133,8 +151,11 @@ def wrap(accel, scene):
     hidden = {}
     vis = getattr(scene, "ray_visibility", None)
     if vis is not None and len(vis) and not np.asarray(vis).all():
-        per_tri = np.take(np.asarray(vis, bool), scene.object_ids, axis=0)
-        hidden = {kind: ~per_tri[:, i] for i, kind in enumerate(("camera", "shadow", "other"))}
+        vis = np.asarray(vis, bool)
+        if vis.shape[1] == 3:               # (camera, shadow, diffuse for all other rays)
+            vis = vis[:, [0, 1, 2, 2, 2]]
+        per_tri = np.take(vis, scene.object_ids, axis=0)
+        hidden = {kind: ~per_tri[:, i] for i, kind in enumerate(("camera", "shadow") + KIND_NAMES)}
     if not flag.any() and not any(h.any() for h in hidden.values()):
         return accel
     return TransparentAccel(accel, scene, flag, transparency, hidden)

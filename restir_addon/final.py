@@ -25,6 +25,7 @@ import numpy as np
 from ..core import RenderSettings, render_frame
 from ..core.environment import scene_environment
 from ..core.film import to_rgba
+from ..core.integrators.bounces import Bounces
 from ..core.render import render_restir
 from ..core.restir import ReSTIRSettings
 from . import memory, state
@@ -38,15 +39,22 @@ UPDATE_INTERVAL = 1.0   # seconds between progressive result updates
 last_timings = {}
 
 
+def bounces(scene):
+    """Render > Light Paths: the total and per-kind limits (as Cycles counts)."""
+    s = scene.restir_gi
+    return Bounces(s.max_bounces, getattr(s, "diffuse_bounces", None), getattr(s, "glossy_bounces", None),
+                   getattr(s, "transmission_bounces", None))
+
+
 def path_settings(scene):
     s = scene.restir_gi
-    return RenderSettings(mode=s.mode, samples=s.samples, max_bounces=s.max_bounces, seed=s.seed)
+    return RenderSettings(mode=s.mode, samples=s.samples, max_bounces=bounces(scene), seed=s.seed)
 
 
 def restir_settings(scene):
     s = scene.restir_gi
     return ReSTIRSettings(
-        mode=s.mode, samples=1, max_bounces=s.max_bounces, seed=s.seed,
+        mode=s.mode, samples=1, max_bounces=bounces(scene), seed=s.seed,
         accumulate=s.accumulate_frames,
         initial_sampling=s.initial_sampling, temporal_M_cap=float(s.temporal_m_cap),
         spatial_M_cap=float(s.spatial_m_cap), max_age=s.max_age,

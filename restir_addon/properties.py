@@ -117,6 +117,18 @@ class RestirGISceneSettings(bpy.types.PropertyGroup):
         description="Maximum number of bounces of a light path",
         default=4, min=0, soft_max=16, max=128,
     )
+    diffuse_bounces: IntProperty(
+        name="Diffuse", default=4, min=0, soft_max=16, max=1024,
+        description="Maximum number of diffuse reflection bounces, bounded by the total maximum",
+    )
+    glossy_bounces: IntProperty(
+        name="Glossy", default=4, min=0, soft_max=16, max=1024,
+        description="Maximum number of glossy reflection bounces, bounded by the total maximum",
+    )
+    transmission_bounces: IntProperty(
+        name="Transmission", default=12, min=0, soft_max=16, max=1024,
+        description="Maximum number of transmission bounces, bounded by the total maximum",
+    )
     seed: IntProperty(
         name="Seed",
         description="Seed of the random numbers; the same seed gives the same image",

@@ -93,7 +93,13 @@ class RESTIR_RENDER_PT_light_paths(RestirButtonsPanel, bpy.types.Panel):
         layout = self.layout
         layout.use_property_split = True
         layout.use_property_decorate = False
-        layout.prop(context.scene.restir_gi, "max_bounces")
+        s = context.scene.restir_gi
+        col = layout.column(align=True)
+        col.prop(s, "max_bounces", text="Total")
+        col = layout.column(align=True)
+        col.prop(s, "diffuse_bounces")
+        col.prop(s, "glossy_bounces")
+        col.prop(s, "transmission_bounces")
 
 
 classes = (RESTIR_RENDER_PT_sampling, RESTIR_RENDER_PT_resampling, RESTIR_RENDER_PT_viewport,

@@ -41,6 +41,7 @@ from dataclasses import replace
 import numpy as np
 
 from ..core.camera import PixelFilter
+from ..core.integrators.bounces import Bounces
 from ..core.dynamic_accel import TraceInterrupted
 from ..core.film import to_rgba
 from ..core.render import CHUNK_PIXELS, path_trace_pixels
@@ -126,7 +127,7 @@ class ViewportSession(SceneSync):
         self.idle_frames = max(1, int(idle_frames))
         self.frame_budget = float(frame_budget)
         self.settle_frames = max(1, int(settle_frames))
-        self.max_bounces = int(max_bounces)
+        self.max_bounces = max_bounces if isinstance(max_bounces, Bounces) else int(max_bounces)
         self.seed = int(seed)
         base = restir if restir is not None else ReSTIRSettings()
         # One initial sample per pixel per frame: the viewport favours frame rate.

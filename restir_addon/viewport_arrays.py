@@ -21,7 +21,7 @@ def _material_ids(inst):
 class CombinedArrays:
     """``arrays``: name -> array for the names in NAMES, plus ``keys`` (the
     instance key of each object id), ``matrices`` (their world matrices),
-    ``colors`` (O, 4), ``random`` (O,) and ``visibility`` (O, 3) per object."""
+    ``colors`` (O, 4), ``random`` (O,) and ``visibility`` (O, 5) per object."""
 
     def __init__(self):
         self.arrays = None
@@ -62,7 +62,7 @@ class CombinedArrays:
         a = self.arrays
         its = list(instances.values())
         a["colors"] = np.array([it.color for it in its], np.float32).reshape(-1, 4)
-        a["visibility"] = np.array([it.visibility for it in its], bool).reshape(-1, 3)
+        a["visibility"] = np.array([it.visibility for it in its], bool).reshape(-1, 5)
         a["random"] = np.array([object_random(k[:2]) for k in instances], np.float32)
 
     def free(self):

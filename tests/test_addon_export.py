@@ -402,16 +402,17 @@ def test_no_camera(addon):
 
 
 def test_ray_visibility_per_object(addon):
-    """Blender's Camera / Shadow / Diffuse ray visibility reach the scene per
-    object (core/transparency.py hides the object from those rays)."""
+    """Blender's Camera / Shadow / Diffuse / Glossy / Transmission ray
+    visibility reach the scene per object (core/transparency.py hides the object from those rays)."""
     fresh()
     add_mesh("seen", *QUAD)
     b = add_mesh("unseen", *QUAD, location=(2, 0, 0))
     b.visible_camera = False
     b.visible_shadow = False
+    b.visible_glossy = False
     s = export(addon)
     assert s.ray_visibility is not None
     rows = {name: s.ray_visibility[s.object_names.index(name)].tolist() for name in ("seen", "unseen")}
-    assert rows == {"seen": [True, True, True], "unseen": [False, False, True]}
-    b.visible_camera = b.visible_shadow = True
+    assert rows == {"seen": [True] * 5, "unseen": [False, False, True, False, True]}
+    b.visible_camera = b.visible_shadow = b.visible_glossy = True
     assert export(addon).ray_visibility is None      # all visible: nothing to hide

@@ -73,3 +73,22 @@ def test04_objects_hidden_from_some_rays(rng):
     ctx2 = RenderContext.build(two_panes(1.0, np.array([[True, False, True], [True, True, True]])))
     assert not ctx2.accel.occluded(o, d, np.full(len(o), 2.5, np.float32)).any()
     assert (ctx2.accel.intersect_closest(o, d, camera=True).prim < 2).all()
+
+
+def test05_hidden_by_kind_of_bounce(rng):
+    """Visibility (camera, shadow, diffuse, glossy, transmission): the front
+    pane hidden from glossy rays only. Rays of paths pass it by their kind;
+    without kinds (ReSTIR's reconnections) they are diffuse."""
+    from core.integrators.bounces import DIFFUSE, GLOSSY, TRANSMISSION
+    o, d = rays(3000, rng)
+    vis = np.array([[True, True, True, False, True], [True] * 5])
+    ctx = RenderContext.build(two_panes(1.0, vis))
+    assert ctx.accel.per_kind_visibility
+    kinds = np.array([DIFFUSE, GLOSSY, TRANSMISSION], np.int8)[np.arange(len(o)) % 3]
+    behind = np.isin(ctx.accel.intersect_closest(o, d, kinds=kinds).prim, [2, 3])
+    np.testing.assert_array_equal(behind, kinds == GLOSSY)
+    assert (ctx.accel.intersect_closest(o, d).prim < 2).all()
+    # The old (O, 3) form: diffuse stands for glossy and transmission.
+    old = RenderContext.build(two_panes(1.0, np.array([[True, True, False], [True, True, True]])))
+    assert not getattr(old.accel, "per_kind_visibility", False)
+    assert np.isin(old.accel.intersect_closest(o, d).prim, [2, 3]).all()

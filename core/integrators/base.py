@@ -11,6 +11,7 @@ from ..lights import INF_DIST, LightSet
 from ..parallel import SERIAL, Workers
 from ..rows import gather, row_max, rows_finite, scale, scatter
 from ..sampling import dot, orthonormal_basis, power_heuristic, to_local, to_world
+from .bounces import lobe_kinds
 
 RAY_EPS_RELATIVE = 1e-5     # origin offset relative to the scene's extent
 
@@ -139,10 +140,12 @@ def shadow_rays(ctx, p, ng, wi, dist):
     return o, d.astype(np.float32), tmax.astype(np.float32)
 
 
-def sample_continuation(ctx, surf, frame, seeds, bounce):
+def sample_continuation(ctx, surf, frame, seeds, bounce, kinds=False):
     """BSDF-sample one new direction per hit.
 
-    Returns (wi world (N, 3), weight f cos / pdf (N, 3), pdf (N,), valid (N,) bool).
+    Returns (wi world (N, 3), weight f cos / pdf (N, 3), pdf (N,), valid (N,)
+    bool), and with ``kinds`` also each ray's kind of bounce (N,) int8
+    (bounces.py).
     """
     u_lobe = samplers.uniform(seeds, samplers.bounce_dim(bounce, samplers.D_LOBE))
     u = samplers.uniform2(seeds, samplers.bounce_dim(bounce, samplers.D_BSDF_UV))
@@ -155,4 +158,6 @@ def sample_continuation(ctx, surf, frame, seeds, bounce):
         weight = scale(f, cos / np.where(pdf > 0, pdf, 1.0))
     valid &= rows_finite(weight) & (row_max(weight) > 0)
     weight = scale(np.nan_to_num(weight, copy=False), valid.astype(np.float32)).astype(np.float32)
+    if kinds:
+        return wi, weight, pdf, valid, lobe_kinds(frame.params, frame.wo_local, wi_local, u_lobe)
     return wi, weight, pdf, valid

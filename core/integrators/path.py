@@ -22,16 +22,20 @@ from ..interaction import surface_hits
 from ..rows import gather, row_max, scale, scatter, scatter_add
 from ..sampling import luminance, power_heuristic
 from .base import ShadingFrame, direct_light, sample_continuation
+from .bounces import binding, count, per_kind
 
 RR_START_BOUNCE = 3
 
 
-def radiance_from_surface(ctx, surf, seeds, bounce0, max_bounces, frame=None):
+def radiance_from_surface(ctx, surf, seeds, bounce0, max_bounces, frame=None, counts=None):
     """Radiance reflected at ``surf`` toward ``surf.wo`` (its own emission excluded).
 
     bounce0 is the bounce index of ``surf`` (0 for camera hits). Every vertex up
     to bounce ``max_bounces`` gets NEE and a BSDF ray, both weighted by MIS; the
-    BSDF ray of the last vertex only collects emission. ``frame``: the
+    BSDF ray of the last vertex only collects emission. ``max_bounces`` may be
+    a bounces.Bounces with limits per kind of bounce, which end a path at the
+    vertex where one is reached; ``counts`` (N, 3): the bounces of each kind
+    the paths made before ``surf`` (zero if None). ``frame``: the
     ShadingFrame of ``surf`` if the caller has it. Returns (N, 3) float32.
     """
     scene = ctx.scene
@@ -39,6 +43,15 @@ def radiance_from_surface(ctx, surf, seeds, bounce0, max_bounces, frame=None):
     L = np.zeros((n, 3), np.float32)
     alive = np.arange(n)
     beta = np.ones((n, 3), np.float32)
+    limits = np.asarray(per_kind(max_bounces), np.int16)
+    track = binding(max_bounces)
+    by_kind = getattr(ctx.accel, "per_kind_visibility", False)
+    if track:
+        counts = np.zeros((n, 3), np.int16) if counts is None else np.array(counts, np.int16)
+        over = (counts > limits).any(axis=1)        # reached by a ray past a limit: emission only
+        if over.any():
+            alive = np.nonzero(~over)[0]
+            surf, beta, frame = surf.subset(alive), beta[alive], None
     for bounce in range(bounce0, max_bounces + 1):
         if len(alive) == 0:
             break
@@ -46,7 +59,11 @@ def radiance_from_surface(ctx, surf, seeds, bounce0, max_bounces, frame=None):
         if frame is None:
             frame = ShadingFrame.at(scene, surf)
         scatter_add(L, alive, beta * direct_light(ctx, surf, frame, s, bounce))
-        wi, weight, pdf, valid = sample_continuation(ctx, surf, frame, s, bounce)
+        kinds = None
+        if track or by_kind:
+            wi, weight, pdf, valid, kinds = sample_continuation(ctx, surf, frame, s, bounce, kinds=True)
+        else:
+            wi, weight, pdf, valid = sample_continuation(ctx, surf, frame, s, bounce)
         beta = beta * weight
         if bounce >= RR_START_BOUNCE:
             q = np.clip(1.0 - row_max(beta), 0.0, 0.95)
@@ -55,10 +72,16 @@ def radiance_from_surface(ctx, surf, seeds, bounce0, max_bounces, frame=None):
             beta = scale(beta, 1.0 / np.maximum(1.0 - q, 1e-6))
         keep = np.nonzero(valid)[0]
         alive, beta, wi, pdf = alive[keep], gather(beta, keep), gather(wi, keep), pdf[keep]
+        kinds = kinds[keep] if kinds is not None else None
+        if track:
+            c = counts[alive]
+            final = count(c, kinds, limits)     # these rays end their paths at their hits
+            counts[alive] = c
         p_prev = gather(surf.p, keep)
         n_prev = gather(surf.ns, keep)      # the normal NEE sampled a constant world about
         o = offset_origins(p_prev, gather(surf.ng, keep), wi, ctx.eps)
-        hits = ctx.accel.intersect_closest(o, wi)
+        hits = ctx.accel.intersect_closest(o, wi, kinds=kinds) if by_kind \
+            else ctx.accel.intersect_closest(o, wi)
         # Emission found by the BSDF rays, each weighted against NEE.
         if ctx.lights.n_analytic:
             scatter_add(L, alive, beta * ctx.lights.emitted_along(o, wi, hits.t, pdf_bsdf=pdf))
@@ -77,6 +100,11 @@ def radiance_from_surface(ctx, surf, seeds, bounce0, max_bounces, frame=None):
                                                 gather(surf.p, emissive), -gather(surf.wo, emissive))
                 w = power_heuristic(pdf[emissive], pdf_l)
                 scatter_add(L, alive[emissive], scale(gather(beta, emissive) * gather(le, emissive), w))
+        if track and len(alive):
+            go = np.nonzero(~final[idx])[0]
+            if len(go) < len(alive):
+                alive, beta, pdf, p_prev = alive[go], gather(beta, go), pdf[go], gather(p_prev, go)
+                surf = surf.subset(go)
     np.nan_to_num(L, copy=False, nan=0.0, posinf=0.0, neginf=0.0)
     return L
 

@@ -34,6 +34,7 @@ import numpy as np
 from .. import bsdf, samplers
 from ..accel import offset_origins
 from ..integrators.base import direct_light
+from ..integrators.bounces import DIFFUSE, binding, first_bounce_counts, lobe_kinds
 from ..integrators.path import radiance_from_surface
 from ..interaction import surface_hits
 from ..reservoirs import Reservoirs, target
@@ -146,9 +147,13 @@ def initial_samples(ctx, gb, seed, frame, sample, max_bounces, sampling=COSINE, 
     u = samplers.uniform2(seeds, samplers.bounce_dim(0, samplers.D_BSDF_UV))
     wi_l = square_to_uniform_hemisphere(u) if sampling == UNIFORM else square_to_cosine_hemisphere(u)
     glossy = _bsdf_sampled(params)
+    by_kind = getattr(ctx.accel, "per_kind_visibility", False)
+    kinds = np.full(len(index), DIFFUSE, np.int8) if by_kind or binding(max_bounces) else None
     if glossy.any():
         wi_b, _, _ = bsdf.sample(params.subset(glossy), wo_l[glossy], u_lobe[glossy], u[glossy])
         wi_l[glossy] = wi_b
+        if kinds is not None:
+            kinds[glossy] = lobe_kinds(params.subset(glossy), wo_l[glossy], wi_b, u_lobe[glossy])
     pdf = _source_pdf(params, wo_l, wi_l, sampling)
     wi = frame_sh.world(surf, wi_l)
     f = bsdf.evaluate(params, wo_l, wi_l)
@@ -192,7 +197,8 @@ def initial_samples(ctx, gb, seed, frame, sample, max_bounces, sampling=COSINE, 
     rows = np.nonzero(ok)[0]
     wi_r, weight_r = gather(wi, rows), gather(weight, rows)
     o = offset_origins(gather(surf.p, rows), gather(surf.ng, rows), wi_r, ctx.eps)
-    hits = ctx.accel.intersect_closest(o, wi_r)
+    hits = ctx.accel.intersect_closest(o, wi_r, kinds=kinds[rows]) if by_kind \
+        else ctx.accel.intersect_closest(o, wi_r)
     # ... plus the emitters the sample ray finds (analytic lights, emissive
     # triangles), weighted against the same NEE (lights' selection).
     if lights.n_analytic:
@@ -208,8 +214,11 @@ def initial_samples(ctx, gb, seed, frame, sample, max_bounces, sampling=COSINE, 
 
     # The sample: x2 and its outgoing radiance toward x1 (its own emission is
     # direct light of x1, counted above).
-    lo = radiance_from_surface(ctx, surf2, seeds[rows2], 1, max_bounces) if max_bounces >= 1 \
-        else np.zeros((len(rows2), 3), np.float32)
+    # Its path counts the sample ray as one diffuse bounce (the reservoirs
+    # shade the diffuse lobe; validation re-traces it the same way).
+    lo = radiance_from_surface(ctx, surf2, seeds[rows2], 1, max_bounces,
+                               counts=first_bounce_counts(len(rows2), max_bounces)) \
+        if max_bounces >= 1 else np.zeros((len(rows2), 3), np.float32)
     pix = index[rows2]
     for name, value in (("x2", surf2.p), ("ng2", surf2.ng), ("n2", surf2.ns), ("wo2", surf2.wo),
                         ("lo", lo)):

@@ -11,6 +11,7 @@ their direction, less the share the visible points' NEE takes).
 
 import numpy as np
 
+from ..integrators.bounces import first_bounce_counts
 from ..integrators.path import radiance_from_surface
 from ..interaction import SurfaceHits
 from ..parallel import concat_rows
@@ -55,7 +56,8 @@ def validate(ctx, res, max_bounces, threshold=CHANGE_THRESHOLD):
         k = slice(a, b)
         surf = SurfaceHits(p=x2[k], ng=ng2[k], ns=n2[k],
                            wo=wo2[k], prim=prim2[k], material=mat2[k], front=np.ones(b - a, bool))
-        return radiance_from_surface(ctx, surf, seed[k], 1, max_bounces)
+        return radiance_from_surface(ctx, surf, seed[k], 1, max_bounces,
+                                     counts=first_bounce_counts(b - a, max_bounces))
 
     lo_new = concat_rows(ctx.workers.map(retrace, len(first)))[back]
     changed = _changed(luminance(field("lo", slice(None))), luminance(lo_new), threshold)

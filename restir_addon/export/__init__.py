@@ -67,10 +67,10 @@ def object_random(key):
 
 
 def ray_visibility(obj):
-    """Object > Visibility > Ray Visibility: (camera, shadow, other rays; the
-    Diffuse toggle stands for glossy and transmission too)."""
-    return (bool(getattr(obj, "visible_camera", True)), bool(getattr(obj, "visible_shadow", True)),
-            bool(getattr(obj, "visible_diffuse", True)))
+    """Object > Visibility > Ray Visibility: (camera, shadow, diffuse, glossy,
+    transmission)."""
+    return tuple(bool(getattr(obj, "visible_" + kind, True))
+                 for kind in ("camera", "shadow", "diffuse", "glossy", "transmission"))
 
 
 def film_transparent(scene):
