@@ -70,6 +70,28 @@ class BSDFParams:
         return self.p_sheen is not None
 
 
+def without_lobes(params, hidden):
+    """A copy of params whose lobes of the hidden kinds give no light:
+    hidden (N, 3) bool per row for diffuse (Lambert, sheen), glossy (GGX
+    reflection, glass reflection) and transmission (glass refraction)."""
+    p = params.subset(np.arange(len(hidden)))
+    keep = (~hidden).astype(np.float32)
+
+    def zero(name, col):
+        v = getattr(p, name)
+        if v is not None:
+            setattr(p, name, (v * (keep[:, col:col + 1] if v.ndim == 2 else keep[:, col])).astype(np.float32))
+
+    for name in ("diffuse", "layered", "sheen"):
+        zero(name, 0)
+    for name in ("f0", "glass_r"):
+        zero(name, 1)
+    if p.f90 is not None or hidden[:, 1].any():
+        p.f90 = (np.ones_like(p.f0) if p.f90 is None else p.f90) * keep[:, 1:2]
+    zero("glass_t", 2)
+    return p
+
+
 def bsdf_params(materials, material_ids):
     """Per-hit BSDF parameters from the material table.
 

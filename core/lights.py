@@ -46,6 +46,7 @@ class LightSample:
     pdf: np.ndarray         # (N,) solid-angle pdf including selection; 1 x pmf for delta lights
     delta: np.ndarray       # (N,) bool: no BSDF ray can hit this light (no MIS)
     world: np.ndarray = None    # (N,) bool: rows that sampled the world (None: no world to sample)
+    index: np.ndarray = None    # (N,) the light each row sampled (LightSet order)
 
 
 class LightSet:
@@ -77,6 +78,16 @@ class LightSet:
         # Map from any triangle to its slot among emissive ones (-1 if not emissive).
         self.tri_slot = np.full(scene.triangle_count, -1, np.int32)
         self.tri_slot[self.tri_index] = np.arange(len(self.tri_index), dtype=np.int32)
+        # Per light, the kinds of bounce (diffuse, glossy, transmission) whose
+        # rays its object is hidden from: light sampling leaves it out of
+        # those lobes, as Cycles does (None: hidden from none).
+        self.hidden_kinds = None
+        vis = getattr(scene, "ray_visibility", None)
+        if vis is not None and np.asarray(vis).shape[1] == 5 and len(self.tri_index):
+            per_tri = ~np.asarray(vis, bool)[scene.object_ids[self.tri_index]][:, 2:5]
+            if per_tri.any():
+                self.hidden_kinds = np.zeros((self.n_analytic + len(self.tri_index) + 1, 3), bool)
+                self.hidden_kinds[self.n_analytic:self.n_analytic + len(self.tri_index)] = per_tri
 
         lo, hi = scene.bounds()
         self.scene_radius = max(0.5 * float(np.linalg.norm(hi - lo)), 1e-3)
@@ -183,7 +194,7 @@ class LightSet:
             pdf = np.array(pdf, np.float32)
             pdf[bad] = 0.0
         return LightSample(wi, dist, rad.astype(np.float32, copy=False),
-                           pdf.astype(np.float32, copy=False), delta, world)
+                           pdf.astype(np.float32, copy=False), delta, world, idx)
 
     def _sample_triangle(self, li, p, u, n=None):
         slot = li - self.n_analytic

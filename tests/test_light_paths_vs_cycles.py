@@ -81,12 +81,9 @@ def test_ray_visibility_per_kind_matches_cycles(addon):
     """Two glowing red cubes, one in front of the spheres and one behind the
     glass sphere, on a polished metal floor: hidden from glossy rays, the
     floor and the mirror sphere do not show them; hidden from transmission
-    rays, the glass sphere does not.
-
-    Not compared: an emitter hidden from diffuse rays. Cycles also leaves it
-    out of the light sampling of diffuse closures; here it still lights
-    diffuse surfaces through next-event estimation (8.7 % brighter than
-    Cycles in this scene)."""
+    rays, the glass sphere does not; hidden from diffuse rays, their red
+    light does not reach the walls (light sampling leaves them out of the
+    diffuse lobes too, as Cycles does)."""
     import bpy
     from node_families import _assign
     scene = open_example("cornell_box.blend")
@@ -107,14 +104,14 @@ def test_ray_visibility_per_kind_matches_cycles(addon):
 
     def show(hidden_from=None):
         for cube in cubes:
-            for k in ("glossy", "transmission"):
+            for k in ("glossy", "transmission", "diffuse"):
                 setattr(cube, "visible_" + k, k != hidden_from)
 
     ours, cycles = _limits(8, 8, 8, 8)
     show()
     ours(scene, SAMPLES, 3)
     baseline = np.minimum(render_image(scene), CLAMP)
-    for kind in ("glossy", "transmission"):
+    for kind in ("glossy", "transmission", "diffuse"):
         show(kind)
         ratio, chi, img, var = _compare(scene, ours, cycles)
         change = _chi(baseline, img, var)

@@ -99,6 +99,9 @@ def direct_light(ctx, surf, frame, seeds, bounce, mis=True, strategy_pdf=None, u
     else:
         f = bsdf.evaluate(frame.params, frame.wo_local, wi_local)
         pdf_b = strategy_pdf(wi_local) if mis else None
+    hidden = getattr(ctx.lights, "hidden_kinds", None)
+    if hidden is not None and ls.index is not None:
+        f = _without_hidden_lobes(frame, wi_local, f, np.take(hidden, ls.index, axis=0))
     # The light must lie on the side of the surface the lobe sends it to:
     # geometric and shading normals agree (only glass lobes refract).
     cos = np.abs(wi_local[:, 2])
@@ -120,6 +123,18 @@ def direct_light(ctx, surf, frame, seeds, bounce, mis=True, strategy_pdf=None, u
                                               gather(ls.wi, rows), ls.dist[rows]))
     lit = rows[~blocked]
     return scatter(out, lit, gather(contrib, lit))
+
+
+def _without_hidden_lobes(frame, wi_local, f, hidden):
+    """f again, for the rows whose light is hidden from some kinds of bounce
+    (hidden: (N, 3) diffuse, glossy, transmission), without those lobes."""
+    rows = np.nonzero(hidden.any(axis=1))[0]
+    if len(rows) == 0:
+        return f
+    params = bsdf.without_lobes(frame.params.subset(rows), hidden[rows])
+    f = np.array(f, np.float32)
+    scatter(f, rows, bsdf.evaluate(params, gather(frame.wo_local, rows), gather(wi_local, rows)))
+    return f
 
 
 def shadow_rays(ctx, p, ng, wi, dist):
