@@ -50,7 +50,7 @@ def setup_restir(scene, samples, seed, bounces, mode="PATH"):
     s.mode = mode
     s.samples = samples
     s.seed = seed
-    s.max_bounces = bounces
+    s.max_bounces = s.diffuse_bounces = s.glossy_bounces = s.transmission_bounces = bounces
 
 
 def render_image(scene):
