@@ -277,11 +277,12 @@ class AnalyticLights:
 
     # --- what rays crossing the lights see ---------------------------------------------
 
-    def emitted_along(self, o, d, tmax, pmf, pdf_bsdf=None):
+    def emitted_along(self, o, d, tmax, pmf, pdf_bsdf=None, hidden=None):
         """Radiance of the analytic lights crossed by rays o + t d, 0 < t < tmax,
         weighted against NEE by the power heuristic (pmf: each light's selection
         probability). pdf_bsdf None means camera rays: weight one, and only
-        lights marked camera_visible."""
+        lights marked camera_visible. hidden: (L, N) or (L, 1) bool, the rays
+        each light is hidden from."""
         n = len(o)
         total = np.zeros((n, 3), np.float32)
         if len(self.lights) == 0 or n == 0:
@@ -290,6 +291,8 @@ class AnalyticLights:
         for li in range(len(self.lights)):
             kind = lt.kind[li]
             if pdf_bsdf is None and not lt.camera_visible[li]:
+                continue
+            if hidden is not None and hidden[li].all():
                 continue
             pmf_li = pmf[li]
             if kind == LIGHT_AREA:
@@ -343,5 +346,7 @@ class AnalyticLights:
             else:
                 pb = pdf_bsdf if np.ndim(pdf_bsdf) == 0 else np.take(pdf_bsdf, rows)
                 w = power_heuristic(pb, np.take(pdf_light, rows))
+            if hidden is not None and hidden[li].any():
+                w = w * ~np.take(np.broadcast_to(hidden[li], (n,)), rows)
             scatter_add(total, rows, (np.broadcast_to(le, (len(rows), 3)) * w[:, None]).astype(np.float32))
         return total

@@ -82,12 +82,15 @@ class LightSet:
         # rays its object is hidden from: light sampling leaves it out of
         # those lobes, as Cycles does (None: hidden from none).
         self.hidden_kinds = None
+        hidden = np.zeros((self.n_analytic + len(self.tri_index) + 1, 3), bool)
+        lamps = getattr(scene.lights, "hidden_kinds", None)
+        if lamps is not None and len(lamps):
+            hidden[:self.n_analytic] = lamps
         vis = getattr(scene, "ray_visibility", None)
         if vis is not None and np.asarray(vis).shape[1] == 5 and len(self.tri_index):
-            per_tri = ~np.asarray(vis, bool)[scene.object_ids[self.tri_index]][:, 2:5]
-            if per_tri.any():
-                self.hidden_kinds = np.zeros((self.n_analytic + len(self.tri_index) + 1, 3), bool)
-                self.hidden_kinds[self.n_analytic:self.n_analytic + len(self.tri_index)] = per_tri
+            hidden[self.n_analytic:-1] = ~np.asarray(vis, bool)[scene.object_ids[self.tri_index]][:, 2:5]
+        if hidden.any():
+            self.hidden_kinds = hidden
 
         lo, hi = scene.bounds()
         self.scene_radius = max(0.5 * float(np.linalg.norm(hi - lo)), 1e-3)
@@ -261,8 +264,15 @@ class LightSet:
             return np.zeros((len(d), 3), np.float32)
         return self.environment.radiance(d)
 
-    def emitted_along(self, o, d, tmax, pdf_bsdf=None):
+    def emitted_along(self, o, d, tmax, pdf_bsdf=None, kinds=None):
         """Radiance of the analytic lights crossed by rays o + t d, 0 < t < tmax,
         weighted against NEE by the power heuristic. pdf_bsdf None means camera
-        rays: weight one, and only lights marked camera_visible."""
-        return self.analytic.emitted_along(o, d, tmax, self.distribution.pmf, pdf_bsdf)
+        rays: weight one, and only lights marked camera_visible. kinds: each
+        ray's kind of bounce (diffuse where None), which lights hidden from
+        it do not give."""
+        hidden = None
+        if self.hidden_kinds is not None and pdf_bsdf is not None:
+            lamps = self.hidden_kinds[:self.n_analytic]
+            if lamps.any():
+                hidden = lamps[:, 0:1] if kinds is None else lamps[:, kinds]     # (L, N)
+        return self.analytic.emitted_along(o, d, tmax, self.distribution.pmf, pdf_bsdf, hidden)

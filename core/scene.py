@@ -78,6 +78,8 @@ class Lights:
     soft_falloff: np.ndarray    # (L,) bool, point/spot act as a disk facing the receiver
     camera_visible: np.ndarray  # (L,) bool, camera rays see the light (Blender's default: no)
     names: list = field(default_factory=list)
+    # (L, 3) bool: hidden from diffuse, glossy, transmission rays (None: from none)
+    hidden_kinds: np.ndarray = None
 
     @staticmethod
     def empty():
@@ -111,6 +113,7 @@ class Lights:
             soft_falloff=col("soft_falloff", True, bool),
             camera_visible=col("camera_visible", False, bool),
             names=[r.get("name", f"light_{i}") for i, r in enumerate(rows)],
+            hidden_kinds=col("hidden_kinds", (False, False, False), bool, width=3),
         )
 
     def __len__(self):

@@ -118,3 +118,31 @@ def test_ray_visibility_per_kind_matches_cycles(addon):
         print(f"hidden from {kind}: ratio {ratio:.4f} block chi {chi:.2f} change {change:.1f}")
         assert abs(ratio - 1) < 0.02 and chi < 2.5, kind
         assert change > 5, (kind, change)       # hiding them changed the picture (noise: ~1)
+
+
+def test_lamp_hidden_by_kind_matches_cycles(addon):
+    """An area lamp over the polished floor and the mirror sphere, hidden
+    from glossy rays (no highlight of it, no reflection), then from diffuse
+    rays (it lights only the glossy lobes)."""
+    import bpy
+    from node_families import _assign
+    scene = open_example("cornell_box.blend")
+    set_resolution(scene, SIZE, SIZE)
+    _spheres([(0.35, (-0.4, -0.2), _principled("Mirror", **{
+                  "Base Color": (0.9, 0.9, 0.9, 1), "Metallic": 1.0, "Roughness": 0.2}))])
+    _assign(["Floor"], _principled("Satin", **{"Base Color": (0.6, 0.6, 0.6, 1), "Roughness": 0.25}))
+    lamp = bpy.data.lights.new("Lamp", "AREA")
+    lamp.energy, lamp.size = 40.0, 0.4
+    obj = bpy.data.objects.new("Lamp", lamp)
+    obj.location = (0.45, -0.3, 1.4)
+    scene.collection.objects.link(obj)
+    ours, cycles = _limits(8, 8, 8, 8)
+    ours(scene, SAMPLES, 3)
+    baseline = np.minimum(render_image(scene), CLAMP)
+    for kind in ("glossy", "diffuse"):
+        obj.visible_glossy, obj.visible_diffuse = kind != "glossy", kind != "diffuse"
+        ratio, chi, img, var = _compare(scene, ours, cycles)
+        change = _chi(baseline, img, var)
+        print(f"lamp hidden from {kind}: ratio {ratio:.4f} block chi {chi:.2f} change {change:.1f}")
+        assert abs(ratio - 1) < 0.02 and chi < 2.5, kind
+        assert change > 5, (kind, change)

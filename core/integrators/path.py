@@ -46,6 +46,7 @@ def radiance_from_surface(ctx, surf, seeds, bounce0, max_bounces, frame=None, co
     limits = np.asarray(per_kind(max_bounces), np.int16)
     track = binding(max_bounces)
     by_kind = getattr(ctx.accel, "per_kind_visibility", False)
+    want_kinds = track or by_kind or getattr(ctx.lights, "hidden_kinds", None) is not None
     if track:
         counts = np.zeros((n, 3), np.int16) if counts is None else np.array(counts, np.int16)
         over = (counts > limits).any(axis=1)        # reached by a ray past a limit: emission only
@@ -60,7 +61,7 @@ def radiance_from_surface(ctx, surf, seeds, bounce0, max_bounces, frame=None, co
             frame = ShadingFrame.at(scene, surf)
         scatter_add(L, alive, beta * direct_light(ctx, surf, frame, s, bounce))
         kinds = None
-        if track or by_kind:
+        if want_kinds:
             wi, weight, pdf, valid, kinds = sample_continuation(ctx, surf, frame, s, bounce, kinds=True)
         else:
             wi, weight, pdf, valid = sample_continuation(ctx, surf, frame, s, bounce)
@@ -84,7 +85,7 @@ def radiance_from_surface(ctx, surf, seeds, bounce0, max_bounces, frame=None, co
             else ctx.accel.intersect_closest(o, wi)
         # Emission found by the BSDF rays, each weighted against NEE.
         if ctx.lights.n_analytic:
-            scatter_add(L, alive, beta * ctx.lights.emitted_along(o, wi, hits.t, pdf_bsdf=pdf))
+            scatter_add(L, alive, beta * ctx.lights.emitted_along(o, wi, hits.t, pdf_bsdf=pdf, kinds=kinds))
         miss = np.nonzero(~hits.hit)[0]
         if len(miss) and ctx.lights.environment is not None:
             scatter_add(L, alive[miss], escaped_radiance(ctx.lights, gather(wi, miss), pdf[miss],

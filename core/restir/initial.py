@@ -148,7 +148,8 @@ def initial_samples(ctx, gb, seed, frame, sample, max_bounces, sampling=COSINE, 
     wi_l = square_to_uniform_hemisphere(u) if sampling == UNIFORM else square_to_cosine_hemisphere(u)
     glossy = _bsdf_sampled(params)
     by_kind = getattr(ctx.accel, "per_kind_visibility", False)
-    kinds = np.full(len(index), DIFFUSE, np.int8) if by_kind or binding(max_bounces) else None
+    want = by_kind or binding(max_bounces) or getattr(ctx.lights, "hidden_kinds", None) is not None
+    kinds = np.full(len(index), DIFFUSE, np.int8) if want else None
     if glossy.any():
         wi_b, _, _ = bsdf.sample(params.subset(glossy), wo_l[glossy], u_lobe[glossy], u[glossy])
         wi_l[glossy] = wi_b
@@ -202,7 +203,8 @@ def initial_samples(ctx, gb, seed, frame, sample, max_bounces, sampling=COSINE, 
     # ... plus the emitters the sample ray finds (analytic lights, emissive
     # triangles), weighted against the same NEE (lights' selection).
     if lights.n_analytic:
-        scatter_add(d, rows, weight_r * lights.emitted_along(o, wi_r, hits.t, pdf_bsdf=pdf[rows]))
+        scatter_add(d, rows, weight_r * lights.emitted_along(o, wi_r, hits.t, pdf_bsdf=pdf[rows],
+                                                             kinds=None if kinds is None else kinds[rows]))
     surf2, hit_idx = surface_hits(scene, o, wi_r, hits)
     rows2 = rows[hit_idx]
     if len(lights.tri_index):

@@ -32,6 +32,8 @@ def light_row(light_object, matrix, warn):
         "power": color * float(light.energy) * 2.0 ** float(getattr(light, "exposure", 0.0)),
     }
     row["camera_visible"] = bool(getattr(light_object, "visible_camera", False))
+    row["hidden_kinds"] = tuple(not bool(getattr(light_object, "visible_" + k, True))
+                                for k in ("diffuse", "glossy", "transmission"))
     if light.type in ("POINT", "SPOT"):
         row["radius"] = float(light.shadow_soft_size)
         row["soft_falloff"] = bool(getattr(light, "use_soft_falloff", True))
