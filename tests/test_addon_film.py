@@ -55,3 +55,45 @@ def test_holdout_cuts_out_the_object(addon, mode):
     left, right = rgba[:, :6], rgba[:, 10:]
     assert np.allclose(left, 0.0)                                   # cut out: black, alpha 0
     assert np.allclose(right[..., 3], 1.0) and np.allclose(right[..., :3], 0.5, atol=1e-3)
+
+
+def test_holdout_in_a_mirror_as_cycles(addon):
+    """A holdout box on a mirror floor with Film > Transparent: cut out where
+    the camera sees it, not in its reflection (reflected paths leave
+    Cycles' transparent background too): alpha and colour as Cycles'."""
+    import os
+    import tempfile
+
+    import OpenEXR
+    from blender_util import open_example, set_resolution, setup_cycles, setup_restir
+    from node_families import _assign, _new_material, _principled
+    import bpy
+    scene = open_example("cornell_box.blend")
+    set_resolution(scene, 48, 48)
+    _assign(["Floor"], _principled("Mirror", **{"Base Color": (0.9, 0.9, 0.9, 1), "Metallic": 1.0,
+                                                 "Roughness": 0.02}))
+    mat, tree, out = _new_material("Hold")
+    tree.links.new(tree.nodes.new("ShaderNodeHoldout").outputs[0], out.inputs["Surface"])
+    _assign(["ShortBox"], mat)
+    scene.render.film_transparent = True
+    s = scene.render.image_settings
+    s.file_format, s.color_depth, s.color_mode = "OPEN_EXR", "32", "RGBA"
+    result = {}
+    for name, setup in (("ours", setup_restir), ("cycles", setup_cycles)):
+        setup(scene, 32, 1, 4)
+        fd, path = tempfile.mkstemp(suffix=".exr")
+        os.close(fd)
+        try:
+            scene.render.filepath = path
+            bpy.ops.render.render(write_still=True)
+            with OpenEXR.File(path, separate_channels=True) as f:
+                ch = f.parts[0].channels
+                result[name] = np.stack([ch[k].pixels for k in "RGBA"], -1)
+        finally:
+            os.unlink(path)
+    ours, cycles = result["ours"], result["cycles"]
+    cut = cycles[..., 3] < 0.5
+    assert 0.03 < cut.mean() < 0.3                              # the box is cut out...
+    assert abs((ours[..., 3] < 0.5).mean() - cut.mean()) < 0.01   # ... in the same pixels
+    assert abs(ours[..., 3].mean() - cycles[..., 3].mean()) < 0.005
+    assert abs(np.minimum(ours[..., :3], 1).mean() / np.minimum(cycles[..., :3], 1).mean() - 1) < 0.03
