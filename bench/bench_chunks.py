@@ -8,7 +8,8 @@ of one continuous render, for several warm-up lengths.
 Per seed: one continuous render of the file's frame range, then, for each
 warm-up length W and each chunk start S (frame_start + k * chunk, k >= 1), a
 job of frame S alone with ``chunk_warmup_frames`` = W (W = 0: a cold start,
-the file's still warm-up at frame S). MSE against a Cycles reference of frame
+the file's still warm-up at frame S; a warm-up that starts after frame_start
+starts with the file's still warm-up, or --fresh-frames). MSE against a Cycles reference of frame
 S (--ref-spp, cached in bench/out/refs/). Printed per W: the MSE of the chunk
 starts relative to the continuous render's MSE of the same frames (mean over
 starts and seeds; 1.00 = the same quality), its spread over the seeds, and
@@ -41,6 +42,9 @@ def parse_args():
     p.add_argument("--seeds", type=ints, default=[0, 1, 2])
     p.add_argument("--ref-spp", type=int, default=1024)
     p.add_argument("--mode", choices=sorted(MODES), default="biased")
+    p.add_argument("--fresh-frames", type=int, default=None,
+                   help="frames on the still scene where a warm-up starts after frame_start "
+                        "(default: the file's warm-up frames)")
     return p.parse_args()
 
 
@@ -77,7 +81,8 @@ def cycles_reference(blend, frame, spp):
 
 def main():
     args = parse_args()
-    load_addon()
+    addon = load_addon()
+    addon.restir_addon.final.CHUNK_FRESH_FRAMES = args.fresh_frames
     import bpy
     bpy.ops.wm.open_mainfile(filepath=args.blend, load_ui=False)
     first, last = bpy.context.scene.frame_start, bpy.context.scene.frame_end
@@ -110,7 +115,8 @@ def main():
                   + f"  (start frame {statistics.mean(times[w][-len(starts):]):.1f} frames' time)",
                   flush=True)
 
-    lines = [f"Chunk starts of {Path(args.blend).name} ({args.mode}, chunks of {args.chunk}, starts "
+    fresh = "" if args.fresh_frames is None else f", {args.fresh_frames} fresh frame(s)"
+    lines = [f"Chunk starts of {Path(args.blend).name} ({args.mode}{fresh}, chunks of {args.chunk}, starts "
              f"{starts}, seeds {args.seeds}, reference Cycles {args.ref_spp} spp)", "",
              "| chunk warm-up | MSE / continuous (mean) | per seed | start frame time / frame time |",
              "|---|---|---|---|"]

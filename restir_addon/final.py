@@ -34,6 +34,9 @@ from .memory import SceneTooLarge
 from .passes import PASSES
 
 UPDATE_INTERVAL = 1.0   # seconds between progressive result updates
+# Frames of resampling on the still scene where a chunk warm-up starts after
+# frame_start (None: warmup_frames, as a first frame; bench/bench_chunks.py).
+CHUNK_FRESH_FRAMES = None
 
 # Seconds spent in each stage of the latest frame (for the benchmarks and the log).
 last_timings = {}
@@ -164,7 +167,10 @@ def _chunk_warmup(engine, depsgraph, stream, width, height):
                 stream.last_frame = None
                 continue
             fresh = stream.last_frame is None
-            frames = scene.restir_gi.warmup_frames if fresh else scene.restir_gi.samples
+            frames = scene.restir_gi.samples
+            if fresh:
+                frames = scene.restir_gi.warmup_frames if f == scene.frame_start or \
+                    CHUNK_FRESH_FRAMES is None else CHUNK_FRESH_FRAMES
             engine.update_stats("", f"Frame {frame} | chunk warm-up: frame {f} "
                                     f"({f - first + 1}/{frame - first}) "
                                     f"| {time.perf_counter() - start:.1f} s")
