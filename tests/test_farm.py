@@ -189,3 +189,15 @@ def test_bad_input_is_refused_and_writes_nothing(tmp_path, case):
                "chunk 0": "--chunk must be at least 1", "no scheduler": "cannot reach"}[case]
     assert "error" in proc.stdout and message in proc.stdout, proc.stdout
     assert not out.exists()
+
+
+def test_frame_ranges():
+    sys.path.insert(0, TOOLS)
+    try:
+        from frame_range import chunks, parse_range, runs
+    finally:
+        sys.path.remove(TOOLS)
+    assert parse_range("1-24") == (1, 24) and parse_range("3..7") == (3, 7) and parse_range("5") == (5, 5)
+    assert parse_range("-3--1") == (-3, -1) and parse_range("5-3") is None and parse_range("a-b") is None
+    assert chunks(1, 18, 6) == [(1, 6), (7, 12), (13, 18)] and chunks(1, 5, 2)[-1] == (5, 5)
+    assert runs([1, 2, 3, 5, 7, 8]) == [(1, 3), (5, 5), (7, 8)] and runs([1, 3, 5], 2) == [(1, 5)]

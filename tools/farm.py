@@ -41,6 +41,8 @@ import threading
 import time
 from dataclasses import dataclass, field
 
+from frame_range import chunks, parse_range
+
 REPO_ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 DASK_WORKER_ENV = ("MALLOC_TRIM_THRESHOLD_",)
 FRAME_LINE = re.compile(r"^\[render\] frame (-?\d+) \(\d+/\d+\): ([\d.]+) s")
@@ -53,15 +55,6 @@ def log(msg: str) -> None:
 def fail(msg: str, code: int = 2) -> None:
     print("[farm] error: " + msg, file=sys.stderr, flush=True)
     sys.exit(code)
-
-
-def parse_range(text: str) -> tuple[int, int] | None:
-    m = re.fullmatch(r"\s*(-?\d+)\s*(?:(?:-|\.\.)\s*(-?\d+)\s*)?", text)
-    if m is None:
-        return None
-    a = int(m.group(1))
-    b = int(m.group(2)) if m.group(2) is not None else a
-    return (a, b) if a <= b else None
 
 
 def parse_args(argv: list[str] | None) -> argparse.Namespace:
@@ -121,10 +114,6 @@ def frame_files(out: str, frame: int) -> list[str]:
 
 def frames_done(out: str, frames: range) -> set[int]:
     return {f for f in frames if all(os.path.isfile(p) for p in frame_files(out, f))}
-
-
-def chunks(first: int, last: int, size: int) -> list[tuple[int, int]]:
-    return [(a, min(a + size - 1, last)) for a in range(first, last + 1, size)]
 
 
 class ChunkFailed(RuntimeError):

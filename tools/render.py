@@ -50,6 +50,8 @@ import sys
 import time
 import tomllib
 
+from frame_range import parse_range, runs
+
 REPO_ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 REPO_MODULE = "user_default"
 ENGINE_ID = "RESTIR_GI"
@@ -116,28 +118,6 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     else:
         args.range = None
     return args
-
-
-def parse_range(text: str) -> tuple[int, int] | None:
-    """'A-B', 'A..B' or 'A' -> (A, B); None if malformed or empty."""
-    import re
-    m = re.fullmatch(r"\s*(-?\d+)\s*(?:(?:-|\.\.)\s*(-?\d+)\s*)?", text)
-    if m is None:
-        return None
-    a = int(m.group(1))
-    b = int(m.group(2)) if m.group(2) is not None else a
-    return (a, b) if a <= b else None
-
-
-def runs(frames: list[int], step: int) -> list[tuple[int, int]]:
-    """Consecutive frames (``step`` apart) grouped into (first, last) runs."""
-    out: list[tuple[int, int]] = []
-    for f in frames:
-        if out and f == out[-1][1] + step:
-            out[-1] = (out[-1][0], f)
-        else:
-            out.append((f, f))
-    return out
 
 
 def extension_id_and_zip() -> tuple[str, str]:
