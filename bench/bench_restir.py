@@ -1,6 +1,6 @@
 """Where a ReSTIR GI frame spends its time, next to a 1 spp path-traced frame.
 
-    .venv/bin/python bench/bench_restir.py [--blend ...] [--bounces 2] [--frames 12]
+    .venv/bin/python bench/bench_restir.py [--blend ...] [--bounces 2] [--frames 12] [--scale 1]
 
 For one and two worker threads: median ms per pass over --frames frames of a
 warmed-up static view (ReSTIRGI.last_timings: wall time for the G-buffer and
@@ -26,13 +26,16 @@ def main():
     ap.add_argument("--bounces", type=int, default=2)
     ap.add_argument("--frames", type=int, default=12)
     ap.add_argument("--mode", default="RESTIR_BIASED")
+    ap.add_argument("--scale", type=float, default=1.0,
+                    help="render at the file's resolution times this (two workers scale better on "
+                         "larger images: numpy calls on short arrays hold the GIL for most of their time)")
     args = ap.parse_args()
 
     load_addon()
     from restir_gi.core import RenderContext, RenderSettings, render_frame
     from restir_gi.core.restir import ReSTIRGI, ReSTIRSettings
 
-    scene = export_blend(args.blend)
+    scene = export_blend(args.blend, args.scale)
     scene.filter_width = 0.0
     print(f"{Path(args.blend).name} {scene.width}x{scene.height}, {args.mode}, max_bounces "
           f"{args.bounces}, medians of {args.frames} frames (ms)\n")
