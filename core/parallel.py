@@ -59,6 +59,28 @@ class Workers:
         wait(futures)
         return [f.result() for f in futures]
 
+    def map_into(self, fn, n, out=None):
+        """concat_rows(self.map(fn, n)) without holding every range's result:
+        each range's arrays are copied into whole-image arrays as soon as it
+        returns, then dropped. out: those arrays (the structure fn returns,
+        with (n, ...) arrays, e.g. of narrower types); allocated from the
+        first result returned if None. Constants in the result (None, sizes)
+        are taken from that first result."""
+        lock = threading.Lock()
+        holder = [out]
+
+        def run(a, b):
+            part = fn(a, b)
+            with lock:
+                if holder[0] is None:
+                    holder[0] = _alike(part, n)
+                dst = holder[0]
+            _write_rows(dst, part, a, b)
+            return None
+
+        self.map(run, n)
+        return holder[0]
+
     def close(self):
         if self._pool is not None:
             self._pool.shutdown(wait=False)
@@ -102,3 +124,39 @@ def concat_rows(parts, consume=False):
         parts.clear()           # the columns now hold the only references
     joined = [concat_rows(c, consume) for c in columns]
     return tuple(joined) if kind is None else kind(**dict(zip(names, joined)))
+
+
+def _fields(x):
+    """(constructor, items) of a tuple or dataclass result, or None for a leaf."""
+    if isinstance(x, tuple):
+        return tuple, list(x)
+    if hasattr(x, "__dataclass_fields__"):
+        names = list(x.__dataclass_fields__)
+        return (lambda items: type(x)(**dict(zip(names, items)))), [getattr(x, f) for f in names]
+    return None
+
+
+def _alike(part, n):
+    """Empty whole-image arrays shaped like a range's result (n rows)."""
+    if isinstance(part, np.ndarray):
+        return np.empty((n,) + part.shape[1:], part.dtype)
+    nested = _fields(part)
+    if nested is None:
+        return part             # a per-call constant
+    make, items = nested
+    return make([_alike(i, n) for i in items])
+
+
+def _write_rows(dst, part, a, b):
+    """dst[a:b] = part, through tuples and dataclasses (constants are skipped)."""
+    if isinstance(dst, np.ndarray):
+        if len(part) != b - a:
+            raise ValueError(f"a range of {b - a} rows returned {len(part)}")
+        dst[a:b] = part
+        return
+    nested = _fields(dst)
+    if nested is None:
+        return
+    _make, items = nested
+    for d, p in zip(items, _fields(part)[1]):
+        _write_rows(d, p, a, b)

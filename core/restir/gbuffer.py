@@ -3,6 +3,7 @@
 import dataclasses
 from dataclasses import dataclass
 from functools import cached_property
+from types import SimpleNamespace
 
 import numpy as np
 
@@ -69,13 +70,69 @@ class GBuffer:
         return self.p, self.n, self.ng
 
 
+@dataclass
+class FirstPass:
+    """Whole-image outputs of a frame's first pass (G-buffer, initial samples,
+    temporal resampling) that the rest of the frame reads."""
+    valid: np.ndarray       # (P,) bool
+    depth: np.ndarray       # (P,)
+    object_id: np.ndarray   # (P,) int32
+    p: np.ndarray           # (P, 3) visible points (zeros on misses)
+    n: np.ndarray           # (P, 3) shading normals
+    ng: np.ndarray          # (P, 3) geometric normals
+    albedo: np.ndarray      # (P, 3)
+    direct: np.ndarray      # (P, 3) emission seen directly + direct light
+    lum_direct: np.ndarray  # (P,) luminance of the direct light alone (adaptive_direct.py)
+    glossy: np.ndarray      # (P, 3) the glossy lobe's indirect light
+    diffuse: np.ndarray     # (P, 3) diffuse reflectance of the visible points
+    alpha: np.ndarray       # (P,) this frame's coverage (materials.camera_alpha)
+    keep: np.ndarray        # (P,) share of the pixel a holdout leaves
+    prev_pix: np.ndarray    # (P,) int32 last frame's pixel (-1: no history)
+    hold: np.ndarray        # (P,) int8 reprojected noise hold, or None
+    temporal: object        # Reservoirs
+
+
+@dataclass
+class FrameImage:
+    """The whole-image G-buffer arrays of a frame (what spatial reuse reads of
+    neighbours, and the history kept for the next frame)."""
+    valid: np.ndarray
+    depth: np.ndarray
+    object_id: np.ndarray
+    p: np.ndarray
+    n: np.ndarray
+    ng: np.ndarray
+    width: int
+    height: int
+
+    def part(self, start, stop, diffuse):
+        """A GBuffer of pixels [start, stop) with what the passes after the
+        first read of its visible points: position, normals and (diffuse)
+        the diffuse reflectance, gathered from whole-image arrays."""
+        valid = self.valid[start:stop]
+        index = np.flatnonzero(valid)
+        surf = VisiblePoints(gather(self.p[start:stop], index), gather(self.ng[start:stop], index),
+                             gather(self.n[start:stop], index))
+        frame = SimpleNamespace(params=SimpleNamespace(diffuse=gather(diffuse[start:stop], index)))
+        return GBuffer(valid, surf, frame, index, self.depth[start:stop], self.object_id[start:stop],
+                       None, None, self.width, self.height, start)
+
+
+@dataclass
+class VisiblePoints:
+    """The fields of SurfaceHits that shading and reprojection read."""
+    p: np.ndarray
+    ng: np.ndarray
+    ns: np.ndarray
+
+
 def trace_gbuffer(ctx, seed, frame, pixel_filter, jitter=True):
     """Trace one primary ray per pixel (jittered by the pixel filter), the
     pixel ranges on the context's workers."""
     scene = ctx.scene
     n = scene.width * scene.height
     ranges = ctx.workers.ranges(n)
-    parts = ctx.workers.map(lambda a, b: _trace_rows(ctx, seed, frame, pixel_filter, jitter, a, b), n)
+    parts = ctx.workers.map(lambda a, b: trace_rows(ctx, seed, frame, pixel_filter, jitter, a, b), n)
     if len(parts) == 1:
         return parts[0]
     # The whole image's per-pixel arrays; its hits and shading frames stay
@@ -88,7 +145,7 @@ def trace_gbuffer(ctx, seed, frame, pixel_filter, jitter=True):
     return joined
 
 
-def _trace_rows(ctx, seed, frame, pixel_filter, jitter, start, stop):
+def trace_rows(ctx, seed, frame, pixel_filter, jitter, start, stop):
     """The GBuffer of pixels [start, stop) (offset start)."""
     scene = ctx.scene
     w, h = scene.width, scene.height
