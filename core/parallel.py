@@ -140,6 +140,8 @@ def _alike(part, n):
     """Empty whole-image arrays shaped like a range's result (n rows)."""
     if isinstance(part, np.ndarray):
         return np.empty((n,) + part.shape[1:], part.dtype)
+    if hasattr(part, "whole_image"):
+        return part.whole_image(n)      # a store of its own (Reservoirs)
     nested = _fields(part)
     if nested is None:
         return part             # a per-call constant
@@ -153,6 +155,9 @@ def _write_rows(dst, part, a, b):
         if len(part) != b - a:
             raise ValueError(f"a range of {b - a} rows returned {len(part)}")
         dst[a:b] = part
+        return
+    if hasattr(dst, "write_rows"):
+        dst.write_rows(a, b, part)
         return
     nested = _fields(dst)
     if nested is None:

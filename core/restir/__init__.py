@@ -101,7 +101,7 @@ class ReSTIRGI:
         h = self.history
         if h is None:
             return 0
-        return h.temporal.nbytes + h.spatial.nbytes + sum(
+        return sum(r.nbytes for r in _distinct(h.temporal, h.spatial)) + sum(
             a.nbytes for a in (h.p, h.n, h.ng, h.depth, h.valid, h.object_id, h.noise_hold,
                                 h.visibility, h.accumulation) if a is not None)
 
@@ -294,7 +294,7 @@ class ReSTIRGI:
         else:
             (direct_total, indirect), albedo, normal, alpha = shaded, one.albedo, img.n, one.alpha
         hold = update_noise_hold(None, img.valid, img.width, img.height, one.hold, lum=one.lum_direct)
-        del one
+        one = None     # the first pass's arrays: released before the history is made
 
         self.history = FrameHistory(
             width=img.width, height=img.height, camera=scene.camera, p=img.p, n=img.n,
