@@ -18,7 +18,7 @@ from .. import materials, samplers
 from ..camera import PixelFilter
 from ..rows import gather, scale, scatter
 from ..sampling import luminance
-from .accumulation import STILL, Accumulation, accumulate, previous_pixels, restart
+from .accumulation import COLUMNS, STILL, Accumulation, accumulate, previous_pixels, restart
 from .adaptive_direct import light_sample_counts, reprojected_hold, update_noise_hold
 from ..reservoirs import finalize, merge
 from .boiling import boiling_filter
@@ -110,6 +110,14 @@ class ReSTIRGI:
         time for 'validation' and 'total', and for the passes the workers run
         ('gbuffer', 'initial', 'temporal', 'spatial', 'shading') the sum over
         workers, i.e. what they would take on one thread."""
+        try:
+            return self._render_frame(ctx, settings, frame)
+        except BaseException:
+            if self.history is not None and self.history.temporal is None:
+                self.reset()        # last frame's state was partly let go (see _render_frame)
+            raise
+
+    def _render_frame(self, ctx, settings, frame):
         t_start = time.perf_counter()
         timings = {"gbuffer": 0.0, "validation": 0.0, "initial": 0.0, "temporal": 0.0,
                    "spatial": 0.0, "shading": 0.0}
@@ -206,12 +214,22 @@ class ReSTIRGI:
                              part.emission + direct, luminance(direct).astype(np.float32), glossy, diffuse,
                              alpha, keep, prev.astype(np.int32), hold, temporal)
 
-        one = ctx.workers.map_into(new_samples, n)
+        # The first pass's colours and factors go into the columns of the
+        # array that the second pass turns into this frame's running means
+        # (accumulation.COLUMNS), each range reading and then overwriting its
+        # own rows: no whole-image arrays of their own.
+        shaded = np.empty((n, COLUMNS), np.float32)
+        one = ctx.workers.map_into(new_samples, n, out=FirstPass.allocate(n, shaded, history is not None))
         prev_pix, temporal = one.prev_pix, one.temporal
         img = FrameImage(one.valid, one.depth, one.object_id, one.p, one.n, one.ng, gb_width, gb_height)
         ctx.accel.poll()    # the resampling passes trace no rays until shading
         if biased:      # the filter trades a little energy for stability: not in the unbiased mode
             boiling_filter(temporal, img.width, img.height, settings.boiling_filter)
+        if history is not None and getattr(ctx.accel, "interrupt", None) is None:
+            # What the rest of the frame does not read of last frame's state
+            # is let go now (a frame that can be interrupted, the viewport's,
+            # keeps it all for the frame that follows).
+            history.temporal = history.n = history.ng = history.valid = history.noise_hold = None
 
         # The unbiased mode does not carry its spatial reservoirs: with 1/Z
         # weights a carried reservoir's weight is w_sum M / Z, and once visible
@@ -265,34 +283,29 @@ class ReSTIRGI:
                 spatial.clear(visibility < 0)
             direct_total = one.direct[a:b]
             indirect += one.glossy[a:b]     # the glossy lobe's light, from this frame's own samples
-            keep = one.keep[a:b]
+            keep = one.keep[a:b].copy()
             if (keep < 1).any():    # Holdout: the pixel's share cut out, colour and all
                 direct_total, indirect = scale(direct_total, keep), scale(indirect, keep)
             for x in (direct_total, indirect):
                 np.nan_to_num(x, copy=False, nan=0.0, posinf=0.0, neginf=0.0)
-            if accumulating:
-                footprint = None
-                if prev_acc is not None:
-                    footprint = previous_pixels(scene, part, history, motion, still_scene=not moved)
-                shaded = accumulate(prev_acc, footprint, direct_total, indirect, one.albedo[a:b],
-                                    img.n[a:b], settings.accumulate, one.alpha[a:b]).data
-                color = shaded[:, 0:3] + shaded[:, 3:6]
-            else:
-                color = direct_total + indirect
-                shaded = (direct_total, indirect)
+            footprint = None
+            if prev_acc is not None:
+                footprint = previous_pixels(scene, part, history, motion, still_scene=not moved)
+            # (without accumulation: this frame's values, as a mean of one frame)
+            rows = accumulate(prev_acc, footprint, direct_total, indirect, one.albedo[a:b], img.n[a:b],
+                              settings.accumulate, one.alpha[a:b]).data
+            shaded[a:b] = rows
+            color = rows[:, 0:3] + rows[:, 3:6]
             spent("shading", t)
-            return (None if not settings.spatial else spatial), visibility, shaded, color
+            return (None if not settings.spatial else spatial), visibility, color
 
-        spatial, visibility, shaded, color = ctx.workers.map_into(reuse, n)
+        spatial, visibility, color = ctx.workers.map_into(reuse, n)
         if spatial is None:
             spatial = temporal      # without spatial reuse the two are one
-        acc = None
-        if accumulating:
-            acc = Accumulation(shaded)
-            direct_total, indirect, albedo, normal, alpha = acc.direct, acc.indirect, acc.albedo, acc.normal, \
-                acc.alpha
-        else:
-            (direct_total, indirect), albedo, normal, alpha = shaded, one.albedo, img.n, one.alpha
+        frame_acc = Accumulation(shaded)
+        acc = frame_acc if accumulating else None
+        direct_total, indirect, albedo, normal, alpha = frame_acc.direct, frame_acc.indirect, \
+            frame_acc.albedo, frame_acc.normal, frame_acc.alpha
         hold = update_noise_hold(None, img.valid, img.width, img.height, one.hold, lum=one.lum_direct)
         one = None     # the first pass's arrays: released before the history is made
 

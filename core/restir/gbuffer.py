@@ -12,6 +12,7 @@ from ..camera import generate_rays, view_depth
 from ..integrators.base import ShadingFrame
 from ..interaction import SurfaceHits, surface_hits
 from ..parallel import concat_rows
+from ..reservoirs import Reservoirs
 from ..rows import gather, scatter, scatter_add
 
 
@@ -90,6 +91,18 @@ class FirstPass:
     prev_pix: np.ndarray    # (P,) int32 last frame's pixel (-1: no history)
     hold: np.ndarray        # (P,) int8 reprojected noise hold, or None
     temporal: object        # Reservoirs
+
+    @staticmethod
+    def allocate(n, shaded, with_hold):
+        """Whole-image arrays for n pixels, the colours and factors in the
+        columns of ``shaded`` (P, 14): direct 0:3, glossy 3:6 and albedo 6:9
+        where the running means (accumulation.py) will have them, diffuse
+        9:12, keep 12 and alpha 13."""
+        vec = lambda: np.empty((n, 3), np.float32)  # noqa: E731
+        return FirstPass(np.empty(n, bool), np.empty(n, np.float32), np.empty(n, np.int32), vec(), vec(),
+                         vec(), shaded[:, 6:9], shaded[:, 0:3], np.empty(n, np.float32), shaded[:, 3:6],
+                         shaded[:, 9:12], shaded[:, 13], shaded[:, 12], np.empty(n, np.int32),
+                         np.empty(n, np.int8) if with_hold else None, Reservoirs.empty(0).whole_image(n))
 
 
 @dataclass
