@@ -10,6 +10,8 @@ Ray queries made from a worker run on that worker alone: the Accel's own
 two-thread split would only oversubscribe the cores.
 """
 
+import ctypes
+import ctypes.util
 import os
 import threading
 from concurrent.futures import ThreadPoolExecutor, wait
@@ -88,6 +90,32 @@ class Workers:
 
 
 SERIAL = Workers(1)
+
+
+def _libc_trim():
+    """glibc's malloc_trim, or None where the C library has none."""
+    try:
+        libc = ctypes.CDLL(ctypes.util.find_library("c") or "libc.so.6")
+        trim = libc.malloc_trim
+    except (OSError, AttributeError, TypeError):
+        return None
+    trim.argtypes, trim.restype = [ctypes.c_size_t], ctypes.c_int
+    return trim
+
+
+_TRIM = _libc_trim() if os.name == "posix" else None
+
+
+def release_free_memory():
+    """Give the pages freed inside the C heap back to the system (glibc).
+
+    numpy's temporaries of the pixel ranges are allocated from the heaps of
+    the worker threads; once freed, their pages stay resident until the heap
+    reuses them, so after a frame the process holds hundreds of MB it does not
+    use (bench/bench_memory.py). Called once per frame: trimming at every free
+    instead (a small M_TRIM_THRESHOLD) makes every range fault its pages anew."""
+    if _TRIM is not None:
+        _TRIM(0)
 
 
 def concat_rows(parts, consume=False):

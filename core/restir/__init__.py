@@ -16,6 +16,7 @@ import numpy as np
 
 from .. import materials, samplers
 from ..camera import PixelFilter
+from ..parallel import release_free_memory
 from ..rows import gather, scale, scatter
 from ..sampling import luminance
 from .accumulation import COLUMNS, STILL, Accumulation, accumulate, previous_pixels, restart
@@ -316,6 +317,7 @@ class ReSTIRGI:
             signature=_signature(scene), temporal=temporal, spatial=spatial, visibility=visibility,
             noise_hold=hold, accumulation=acc)
         self.frames += 1
+        release_free_memory()   # the passes' temporaries, freed in the workers' heaps
         timings["total"] = time.perf_counter() - t_start
         self.last_timings = timings
         visible_rows = prev_pix[img.valid]
