@@ -102,7 +102,8 @@ def test_viewport_falls_back_to_a_coarser_scale_or_reports(addon, monkeypatch):
     per_pixel = memory.RESTIR_BYTES_PER_PIXEL
     # Room for a quarter of the pixels and a little more, not for half of them.
     monkeypatch.setattr(memory, "available_bytes",
-                        lambda: int(64 * 48 / 4 * per_pixel * 1.1 / memory.IMAGE_BUDGET_SHARE))
+                        lambda: int((memory.RESTIR_FIXED_BYTES + 64 * 48 / 4 * per_pixel * 1.1)
+                                    / memory.IMAGE_BUDGET_SHARE))
     vp = addon.restir_addon.viewport
     for scale, expected in (("AUTO", (32, 24)), ("FULL", None)):
         session = vp.ViewportSession(mode="RESTIR_BIASED", scale=scale, threads=1, max_bounces=1)
@@ -123,7 +124,7 @@ def test_state_already_held_counts_as_available(addon):
     """Frame 2 of an animation holds frame 1's state, which the per-pixel
     figure already includes: it must not be refused for it."""
     memory = addon.restir_addon.memory
-    need = 100 * 100 * memory.RESTIR_BYTES_PER_PIXEL
+    need = memory.image_bytes(100, 100)
     short = int(need / memory.IMAGE_BUDGET_SHARE) - 10_000
     with pytest.raises(memory.SceneTooLarge):
         memory.check_image(100, 100, available=short)
