@@ -28,7 +28,8 @@ BUDGET_SHARE = 0.6
 # fixed part is the temporaries of the pixel ranges in flight, which do not
 # grow with the image. bench/bench_memory.py --frames 3 measured 1.70 GB at
 # 1920x1080 and 4.50 GB at 3840x2160: 483 bytes per pixel between the two,
-# 0.77 GB (Blender's 0.27 GB included) at none (docs/memory.md).
+# and 0.77 GB extrapolated to no pixels, Blender itself included
+# (docs/memory.md).
 RESTIR_BYTES_PER_PIXEL = 500
 RESTIR_FIXED_BYTES = 512 * 1024 ** 2
 # That figure is a measured peak, not a rough count as BYTES_PER_TRIANGLE is,
