@@ -77,7 +77,7 @@ class StoredReservoirs:
     lo16: np.ndarray    # (P, 3) float16
     seed: np.ndarray    # (P,) uint64
     age: np.ndarray     # (P,) int16
-    w_sum: np.ndarray   # (P,) float32
+    w_sum: np.ndarray   # (P,) float32; None once the frame is done (nothing reads it after)
     M: np.ndarray       # (P,) float32
     W: np.ndarray       # (P,) float32
 
@@ -94,15 +94,21 @@ class StoredReservoirs:
             M=np.zeros(n, np.float32), W=np.zeros(n, np.float32))
 
     @staticmethod
-    def bytes_per_row():
-        return StoredReservoirs.empty(1).nbytes
+    def bytes_per_row(kept=False):
+        """Bytes per pixel; kept: as kept for the next frame (without w_sum)."""
+        return StoredReservoirs.empty(1).nbytes - (4 if kept else 0)
+
+    def keep_for_next_frame(self):
+        """Let go of w_sum: the next frame starts every reservoir's sum of
+        weights over (temporal.py, spatial.py) and reads only W and M."""
+        self.w_sum = None
 
     def __len__(self):
         return len(self.M)
 
     @property
     def nbytes(self):
-        return sum(getattr(self, f.name).nbytes for f in fields(self))
+        return sum(getattr(self, f.name).nbytes for f in fields(self) if getattr(self, f.name) is not None)
 
     # --- reading -----------------------------------------------------------
     def field(self, name, index):
@@ -113,6 +119,8 @@ class StoredReservoirs:
             return self._rows(self.lo16, index).astype(np.float32)
         if name == "age":
             return self._rows(self.age, index).astype(np.int32)
+        if name == "w_sum" and self.w_sum is None:
+            return np.zeros(len(self._rows(self.M, index)), np.float32)
         return self._rows(getattr(self, name), index)
 
     @staticmethod
@@ -158,7 +166,8 @@ class StoredReservoirs:
         return self.has_sample & (self.W > 0)
 
     def copy(self):
-        return StoredReservoirs(**{f.name: getattr(self, f.name).copy() for f in fields(self)})
+        return StoredReservoirs(**{f.name: None if getattr(self, f.name) is None else getattr(self, f.name).copy()
+                                   for f in fields(self)})
 
     # --- writing -----------------------------------------------------------
     def _store(self, key, res):
@@ -170,6 +179,8 @@ class StoredReservoirs:
                 self.lo16[key] = encode_radiance(value)
             elif f.name == "age":
                 self.age[key] = np.minimum(value, 32767)
+            elif f.name == "w_sum" and self.w_sum is None:
+                continue
             else:
                 getattr(self, f.name)[key] = value
 
@@ -181,9 +192,17 @@ class StoredReservoirs:
         """Rows at an index array = the float32 Reservoirs res."""
         self._store(index, res)
 
+    def drop(self, rows):
+        """Zero the weights and counts of rows (validation: a changed sample)."""
+        self.M[rows] = 0
+        self.W[rows] = 0
+        if self.w_sum is not None:
+            self.w_sum[rows] = 0
+
     def clear(self, mask):
         """Forget the rows where mask is True."""
-        self.w_sum[mask] = 0
+        if self.w_sum is not None:
+            self.w_sum[mask] = 0
         self.M[mask] = 0
         self.W[mask] = 0
         self.lo16[mask] = 0

@@ -116,6 +116,12 @@ class Reservoirs:
             dst = getattr(self, f.name)
             dst[mask] = getattr(other, f.name)[mask]
 
+    def drop(self, rows):
+        """Zero the weights and counts of rows (validation: a changed sample)."""
+        self.M[rows] = 0
+        self.W[rows] = 0
+        self.w_sum[rows] = 0
+
     def clear(self, mask):
         """Forget the rows where mask is True."""
         self.w_sum[mask] = 0

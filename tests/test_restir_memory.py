@@ -129,3 +129,27 @@ def test_state_already_held_counts_as_available(addon):
     with pytest.raises(memory.SceneTooLarge):
         memory.check_image(100, 100, available=short)
     memory.check_image(100, 100, available=short, held=100 * 100 * state_bytes_per_pixel())
+
+
+def test_a_still_lets_its_state_go_and_an_animation_keeps_it(addon, tmp_path):
+    """Nothing continues a still render, so its reservoirs are released before
+    the images go to Blender; an animation frame keeps them for the next."""
+    import bpy
+    from addon_util import add_mesh, camera, fresh, rect, world
+    scene = fresh(32, 24, samples=1, mode="RESTIR_BIASED")
+    scene.restir_gi.warmup_frames = 2
+    world((0.5, 0.5, 0.5))
+    add_mesh("Floor", *rect(-2, 2, -2, 2))
+    camera(location=(0, 0, 5), type="ORTHO", ortho_scale=4.0)
+    scene.render.image_settings.file_format = "OPEN_EXR"
+    stream = addon.restir_addon.state.stream_for(scene.name, bpy.context.view_layer.name)
+    scene.render.filepath = str(tmp_path / "still.exr")
+    bpy.ops.render.render(write_still=True)
+    assert stream.restir.history is None and stream.restir.nbytes == 0
+    from core.film import read_exr
+    img = read_exr(tmp_path / "still.exr")
+    assert np.isfinite(img).all() and img.mean() > 0
+    scene.frame_start, scene.frame_end = 1, 2
+    scene.render.filepath = str(tmp_path / "f_####")
+    bpy.ops.render.render(animation=True)
+    assert stream.restir.history is not None and stream.last_frame == 2

@@ -80,6 +80,10 @@ class ReSTIRGI:
     """Reservoirs and the previous frame: the temporal state of one image stream."""
 
     def __init__(self):
+        # False: core.render.render_restir lets the state go after its last
+        # frame (a still render, which nothing continues), before the caller
+        # copies the images out; reset() leaves it as set.
+        self.keep_history = True
         self.reset()
 
     def reset(self):
@@ -309,6 +313,9 @@ class ReSTIRGI:
             frame_acc.albedo, frame_acc.normal, frame_acc.alpha
         hold = update_noise_hold(None, img.valid, img.width, img.height, one.hold, lum=one.lum_direct)
         one = None     # the first pass's arrays: released before the history is made
+        for r in _distinct(temporal, spatial):
+            if hasattr(r, "keep_for_next_frame"):
+                r.keep_for_next_frame()
 
         self.history = FrameHistory(
             width=img.width, height=img.height, camera=scene.camera, p=img.p, n=img.n,

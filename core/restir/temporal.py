@@ -55,7 +55,7 @@ def state_bytes_per_pixel(accumulating=True):
     the temporal and spatial reservoirs (narrowed: reservoir_store.py), the
     G-buffer history, two flags and, when frames are accumulated, the running
     means (docs/memory.md)."""
-    return (2 * StoredReservoirs.bytes_per_row() + _GBUFFER_BYTES + _FLAG_BYTES
+    return (2 * StoredReservoirs.bytes_per_row(kept=True) + _GBUFFER_BYTES + _FLAG_BYTES
             + (COLUMNS * 4 if accumulating else 0))
 
 

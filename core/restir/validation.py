@@ -33,7 +33,7 @@ def validate(ctx, res, max_bounces, threshold=CHANGE_THRESHOLD):
             old = luminance(r.field("lo", sky))
             new = luminance(world_sample_radiance(visible_point_lights(ctx.lights), -r.field("wo2", sky)))
             changed_sky = sky[_changed(old, new, threshold)]
-            r.M[changed_sky] = r.W[changed_sky] = r.w_sum[changed_sky] = 0
+            r.drop(changed_sky)
             dropped += len(changed_sky)
     rows = [np.nonzero((r.prim2 >= 0) & (r.M > 0))[0] for r in sets]
     if sum(len(x) for x in rows) == 0 or max_bounces < 1:
@@ -61,9 +61,7 @@ def validate(ctx, res, max_bounces, threshold=CHANGE_THRESHOLD):
     changed = _changed(luminance(field("lo", slice(None))), luminance(lo_new), threshold)
     for i, r in enumerate(sets):
         drop = row[(which == i) & changed]
-        r.M[drop] = 0
-        r.W[drop] = 0
-        r.w_sum[drop] = 0
+        r.drop(drop)
         dropped += len(drop)
     return int(dropped)
 
