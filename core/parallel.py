@@ -10,6 +10,8 @@ Ray queries made from a worker run on that worker alone: the Accel's own
 two-thread split would only oversubscribe the cores.
 """
 
+import ctypes
+import ctypes.util
 import os
 import threading
 from concurrent.futures import ThreadPoolExecutor, wait
@@ -59,6 +61,28 @@ class Workers:
         wait(futures)
         return [f.result() for f in futures]
 
+    def map_into(self, fn, n, out=None):
+        """concat_rows(self.map(fn, n)) without holding every range's result:
+        each range's arrays are copied into whole-image arrays as soon as it
+        returns, then dropped. out: those arrays (the structure fn returns,
+        with (n, ...) arrays, e.g. of narrower types); allocated from the
+        first result returned if None. Constants in the result (None, sizes)
+        are taken from that first result."""
+        lock = threading.Lock()
+        holder = [out]
+
+        def run(a, b):
+            part = fn(a, b)
+            with lock:
+                if holder[0] is None:
+                    holder[0] = _alike(part, n)
+                dst = holder[0]
+            _write_rows(dst, part, a, b)
+            return None
+
+        self.map(run, n)
+        return holder[0]
+
     def close(self):
         if self._pool is not None:
             self._pool.shutdown(wait=False)
@@ -66,6 +90,32 @@ class Workers:
 
 
 SERIAL = Workers(1)
+
+
+def _libc_trim():
+    """glibc's malloc_trim, or None where the C library has none."""
+    try:
+        libc = ctypes.CDLL(ctypes.util.find_library("c") or "libc.so.6")
+        trim = libc.malloc_trim
+    except (OSError, AttributeError, TypeError):
+        return None
+    trim.argtypes, trim.restype = [ctypes.c_size_t], ctypes.c_int
+    return trim
+
+
+_TRIM = _libc_trim() if os.name == "posix" else None
+
+
+def release_free_memory():
+    """Give the pages freed inside the C heap back to the system (glibc).
+
+    numpy's temporaries of the pixel ranges are allocated from the heaps of
+    the worker threads; once freed, their pages stay resident until the heap
+    reuses them, so after a frame the process holds hundreds of MB it does not
+    use (bench/bench_memory.py). Called once per frame: trimming at every free
+    instead (a small M_TRIM_THRESHOLD) makes every range fault its pages anew."""
+    if _TRIM is not None:
+        _TRIM(0)
 
 
 def concat_rows(parts, consume=False):
@@ -102,3 +152,44 @@ def concat_rows(parts, consume=False):
         parts.clear()           # the columns now hold the only references
     joined = [concat_rows(c, consume) for c in columns]
     return tuple(joined) if kind is None else kind(**dict(zip(names, joined)))
+
+
+def _fields(x):
+    """(constructor, items) of a tuple or dataclass result, or None for a leaf."""
+    if isinstance(x, tuple):
+        return tuple, list(x)
+    if hasattr(x, "__dataclass_fields__"):
+        names = list(x.__dataclass_fields__)
+        return (lambda items: type(x)(**dict(zip(names, items)))), [getattr(x, f) for f in names]
+    return None
+
+
+def _alike(part, n):
+    """Empty whole-image arrays shaped like a range's result (n rows)."""
+    if isinstance(part, np.ndarray):
+        return np.empty((n,) + part.shape[1:], part.dtype)
+    if hasattr(part, "whole_image"):
+        return part.whole_image(n)      # a store of its own (Reservoirs)
+    nested = _fields(part)
+    if nested is None:
+        return part             # a per-call constant
+    make, items = nested
+    return make([_alike(i, n) for i in items])
+
+
+def _write_rows(dst, part, a, b):
+    """dst[a:b] = part, through tuples and dataclasses (constants are skipped)."""
+    if isinstance(dst, np.ndarray):
+        if len(part) != b - a:
+            raise ValueError(f"a range of {b - a} rows returned {len(part)}")
+        dst[a:b] = part
+        return
+    if hasattr(dst, "write_rows"):
+        dst.write_rows(a, b, part)
+        return
+    nested = _fields(dst)
+    if nested is None:
+        return
+    _make, items = nested
+    for d, p in zip(items, _fields(part)[1]):
+        _write_rows(d, p, a, b)

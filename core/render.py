@@ -9,7 +9,7 @@ import numpy as np
 from .camera import PixelFilter
 from .film import Film
 from .integrators.path import camera_pass
-from .parallel import concat_rows
+from .parallel import concat_rows, release_free_memory
 from .restir.accumulation import STILL
 
 
@@ -85,7 +85,8 @@ def render_restir(ctx, restir, settings, frame, frames=1, fresh=False, on_frame=
     animation). The image is then the mean of every frame after the first
     settle_frames(frames), so a still gets cleaner as ``frames`` grows (and in
     the unbiased mode converges to the path-traced image). Otherwise each
-    pixel's running mean keeps at most ``settings.accumulate`` frames."""
+    pixel's running mean keeps at most ``settings.accumulate`` frames.
+    With ``restir.keep_history`` False the state is let go at the end."""
     run = settings
     if fresh and settings.accumulate > 1:
         run = dataclasses.replace(settings, accumulate=STILL)
@@ -99,4 +100,7 @@ def render_restir(ctx, restir, settings, frame, frames=1, fresh=False, on_frame=
         result = restir.render_frame(ctx, run, frame * 65536 + i)
         if on_frame is not None:
             on_frame(i, result)
+    if not restir.keep_history:
+        restir.reset()          # the result keeps the images it shows
+        release_free_memory()
     return result

@@ -50,10 +50,9 @@ class Reservoirs:
     ng2: np.ndarray     # (N, 3) geometric normal at x2, facing the visible point that found it
     n2: np.ndarray      # (N, 3) shading normal at x2
     wo2: np.ndarray     # (N, 3) direction from x2 back toward the point that found it
-    prim2: np.ndarray   # (N,) int32 triangle at x2; NO_SAMPLE, or WORLD_SAMPLE for the sky
-    mat2: np.ndarray    # (N,) int32 material at x2
+    prim2: np.ndarray   # (N,) int32 triangle at x2 (its material: scene.material_ids);
+                        # NO_SAMPLE, or WORLD_SAMPLE for the sky
     lo: np.ndarray      # (N, 3) outgoing radiance of x2 (path traced, NEE + MIS)
-    pdf: np.ndarray     # (N,) source pdf (solid angle) of the direction that found x2
     seed: np.ndarray    # (N,) uint64 seed of the path from x2 (for validation)
     age: np.ndarray     # (N,) int32 frames since the sample was created
     # --- resampling state --------------------------------------------------
@@ -63,7 +62,7 @@ class Reservoirs:
 
     NO_SAMPLE = -1
     WORLD_SAMPLE = -2   # the ray escaped: x2 is a far point in its direction, lo the world
-    SAMPLE_FIELDS = ("x2", "ng2", "n2", "wo2", "prim2", "mat2", "lo", "pdf", "seed", "age")
+    SAMPLE_FIELDS = ("x2", "ng2", "n2", "wo2", "prim2", "lo", "seed", "age")
 
     def __len__(self):
         return len(self.M)
@@ -73,8 +72,28 @@ class Reservoirs:
         z3 = lambda: np.zeros((n, 3), np.float32)  # noqa: E731
         z1 = lambda: np.zeros(n, np.float32)  # noqa: E731
         return Reservoirs(x2=z3(), ng2=z3(), n2=z3(), wo2=z3(), prim2=np.full(n, -1, np.int32),
-                          mat2=np.zeros(n, np.int32), lo=z3(), pdf=z1(), seed=np.zeros(n, np.uint64),
+                          lo=z3(), seed=np.zeros(n, np.uint64),
                           age=np.zeros(n, np.int32), w_sum=z1(), M=z1(), W=z1())
+
+    def field(self, name, index):
+        """One field of the rows at an index array (a copy)."""
+        return gather(getattr(self, name), index)
+
+    def put(self, index, other):
+        """Rows at an index array = the rows of other, in place."""
+        for f in fields(self):
+            scatter(getattr(self, f.name), index, getattr(other, f.name))
+
+    def write_rows(self, start, stop, other):
+        """Rows [start, stop) = other's rows, in place."""
+        for f in fields(self):
+            getattr(self, f.name)[start:stop] = getattr(other, f.name)
+
+    def whole_image(self, n):
+        """Where Workers.map_into gathers ranges' reservoirs: the narrow
+        whole-image store (reservoir_store.py)."""
+        from .reservoir_store import StoredReservoirs
+        return StoredReservoirs.empty(n)
 
     def take(self, index):
         """Rows gathered by an index array (a copy)."""
@@ -96,6 +115,12 @@ class Reservoirs:
         for f in fields(self):
             dst = getattr(self, f.name)
             dst[mask] = getattr(other, f.name)[mask]
+
+    def drop(self, rows):
+        """Zero the weights and counts of rows (validation: a changed sample)."""
+        self.M[rows] = 0
+        self.W[rows] = 0
+        self.w_sum[rows] = 0
 
     def clear(self, mask):
         """Forget the rows where mask is True."""

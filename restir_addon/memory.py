@@ -21,12 +21,17 @@ BYTES_PER_VERTEX = 36
 BUDGET_SHARE = 0.6
 
 
-# Peak bytes per pixel of a ReSTIR GI frame on top of Blender itself: the state
-# kept between frames (core.restir.temporal.state_bytes_per_pixel, 295 bytes),
-# last frame's and this one's while it is built, and the passes' outputs and
-# temporaries (bench/bench_memory.py: 3.43 GB at 1920x1080 for an animation
-# frame, 1.6 KB per pixel; docs/memory.md).
-RESTIR_BYTES_PER_PIXEL = 1600
+# Peak memory of a ReSTIR GI animation frame on top of Blender itself, as
+# bytes per pixel plus a fixed part: the state kept between frames
+# (core.restir.temporal.state_bytes_per_pixel, 207 bytes), what a frame holds
+# of last frame's while it builds its own, the images handed to Blender; the
+# fixed part is the temporaries of the pixel ranges in flight, which do not
+# grow with the image. bench/bench_memory.py --frames 3 measured 1.69 GB at
+# 1920x1080 and 4.45 GB at 3840x2160: 476 bytes per pixel between the two,
+# and 0.77 GB extrapolated to no pixels, Blender itself included
+# (docs/memory.md).
+RESTIR_BYTES_PER_PIXEL = 500
+RESTIR_FIXED_BYTES = 512 * 1024 ** 2
 # That figure is a measured peak, not a rough count as BYTES_PER_TRIANGLE is,
 # so the image may take a larger share of the available memory.
 IMAGE_BUDGET_SHARE = 0.85
@@ -72,6 +77,11 @@ def check_geometry(triangles, vertices, instances, available=None):
         "Subdivision), or render on a machine with more memory.")
 
 
+def image_bytes(width, height):
+    """Estimated peak memory of a ReSTIR GI render of width x height."""
+    return RESTIR_FIXED_BYTES + width * height * RESTIR_BYTES_PER_PIXEL
+
+
 def check_image(width, height, available=None, held=0):
     """Raise SceneTooLarge if a ReSTIR GI render of width x height would not
     fit. held: bytes of ReSTIR state this process already holds for the render
@@ -81,12 +91,13 @@ def check_image(width, height, available=None, held=0):
     if available is None:
         return
     available += held
-    need = width * height * RESTIR_BYTES_PER_PIXEL
+    need = image_bytes(width, height)
     if need <= IMAGE_BUDGET_SHARE * available:
         return
     gb = 1024.0 ** 3
     raise SceneTooLarge(
         f"A {width}x{height} ReSTIR GI render needs about {need / gb:.1f} GB "
-        f"({RESTIR_BYTES_PER_PIXEL} bytes per pixel), and this machine has {available / gb:.1f} GB "
+        f"({RESTIR_BYTES_PER_PIXEL} bytes per pixel and {RESTIR_FIXED_BYTES / gb:.1f} GB), and this "
+        f"machine has {available / gb:.1f} GB "
         f"available (the limit is {IMAGE_BUDGET_SHARE:.0%} of it). Lower the resolution (Output "
         "Properties > Format) or render in Path Tracing mode, which works in bounded chunks.")

@@ -106,6 +106,32 @@ def test03c_consuming_concatenation_matches_and_empties_the_parts():
         assert np.array_equal(getattr(plain[1], f), getattr(eaten[1], f)), f
 
 
+def test03d_map_into_writes_each_range_into_whole_image_arrays():
+    """Workers.map_into gives what concat_rows of map gives, for arrays,
+    tuples and dataclasses, into arrays it allocates or the caller's (which
+    may be of narrower types)."""
+    from core.reservoirs import Reservoirs
+    n = 3 * MIN_PIXELS_PER_WORKER + 11
+    workers = Workers(2, max_range=1000)
+    try:
+        def fn(a, b):
+            res = Reservoirs.empty(b - a)
+            res.w_sum[:] = np.arange(a, b) * 0.5
+            return np.arange(a, b) * 2, res, None
+
+        plain = concat_rows(workers.map(fn, n))
+        into = workers.map_into(fn, n)
+        assert into[2] is None and np.array_equal(plain[0], into[0])
+        stored = into[1].take(np.arange(n))     # Reservoirs go into their narrow store
+        for f in plain[1].__dataclass_fields__:
+            assert np.array_equal(getattr(plain[1], f), getattr(stored, f)), f
+        mine = np.zeros(n, np.int32)
+        out = workers.map_into(lambda a, b: np.arange(a, b), n, out=mine)
+        assert out is mine and np.array_equal(mine, np.arange(n))
+    finally:
+        workers.close()
+
+
 def test04_a_failing_range_waits_for_the_others():
     """An exception in one range (a cancelled trace) is raised only after every
     other range has finished, so nothing runs on after the call."""

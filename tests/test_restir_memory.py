@@ -26,6 +26,36 @@ def test_state_size_matches_the_arrays_held(mode, accumulate):
         ctx.close()
 
 
+@pytest.mark.parametrize("mode", [BIASED, UNBIASED])
+def test_narrow_state_changes_images_by_float16_rounding_only(mode, monkeypatch):
+    """The whole-image reservoirs are stored narrowed (core/reservoir_store.py).
+    Against the same frames with float32 reservoirs, what does not depend on
+    them is bit for bit the same and the indirect light differs by about
+    float16's rounding of the reused radiance."""
+    from core.reservoirs import Reservoirs
+    scene = cornell_box("area", 48, 32)
+
+    def frames():
+        ctx = RenderContext.build(scene)
+        try:
+            restir = ReSTIRGI()
+            settings = ReSTIRSettings(mode=mode, max_bounces=2, seed=4)
+            return [restir.render_frame(ctx, settings, f) for f in range(4)]
+        finally:
+            ctx.close()
+
+    narrow = frames()
+    monkeypatch.setattr(Reservoirs, "whole_image", lambda self, n: Reservoirs.empty(n))
+    wide = frames()
+    for a, b in zip(narrow, wide):
+        for name in ("direct", "normal", "albedo", "depth", "alpha"):
+            assert np.array_equal(getattr(a, name), getattr(b, name)), name
+        assert (a.M == b.M).mean() > 0.99
+        scale = max(float(np.abs(b.indirect).mean()), 1e-6)
+        assert np.abs(a.indirect - b.indirect).mean() < 5e-4 * scale
+        assert np.abs(a.indirect - b.indirect).max() < 2e-3 * max(float(np.abs(b.indirect).max()), 1e-6)
+
+
 def test_documented_bytes_per_pixel():
     """docs/memory.md states the figure this computes."""
     from pathlib import Path
@@ -72,7 +102,8 @@ def test_viewport_falls_back_to_a_coarser_scale_or_reports(addon, monkeypatch):
     per_pixel = memory.RESTIR_BYTES_PER_PIXEL
     # Room for a quarter of the pixels and a little more, not for half of them.
     monkeypatch.setattr(memory, "available_bytes",
-                        lambda: int(64 * 48 / 4 * per_pixel * 1.1 / memory.IMAGE_BUDGET_SHARE))
+                        lambda: int((memory.RESTIR_FIXED_BYTES + 64 * 48 / 4 * per_pixel * 1.1)
+                                    / memory.IMAGE_BUDGET_SHARE))
     vp = addon.restir_addon.viewport
     for scale, expected in (("AUTO", (32, 24)), ("FULL", None)):
         session = vp.ViewportSession(mode="RESTIR_BIASED", scale=scale, threads=1, max_bounces=1)
@@ -93,8 +124,32 @@ def test_state_already_held_counts_as_available(addon):
     """Frame 2 of an animation holds frame 1's state, which the per-pixel
     figure already includes: it must not be refused for it."""
     memory = addon.restir_addon.memory
-    need = 100 * 100 * memory.RESTIR_BYTES_PER_PIXEL
+    need = memory.image_bytes(100, 100)
     short = int(need / memory.IMAGE_BUDGET_SHARE) - 10_000
     with pytest.raises(memory.SceneTooLarge):
         memory.check_image(100, 100, available=short)
     memory.check_image(100, 100, available=short, held=100 * 100 * state_bytes_per_pixel())
+
+
+def test_a_still_lets_its_state_go_and_an_animation_keeps_it(addon, tmp_path):
+    """Nothing continues a still render, so its reservoirs are released before
+    the images go to Blender; an animation frame keeps them for the next."""
+    import bpy
+    from addon_util import add_mesh, camera, fresh, rect, world
+    scene = fresh(32, 24, samples=1, mode="RESTIR_BIASED")
+    scene.restir_gi.warmup_frames = 2
+    world((0.5, 0.5, 0.5))
+    add_mesh("Floor", *rect(-2, 2, -2, 2))
+    camera(location=(0, 0, 5), type="ORTHO", ortho_scale=4.0)
+    scene.render.image_settings.file_format = "OPEN_EXR"
+    stream = addon.restir_addon.state.stream_for(scene.name, bpy.context.view_layer.name)
+    scene.render.filepath = str(tmp_path / "still.exr")
+    bpy.ops.render.render(write_still=True)
+    assert stream.restir.history is None and stream.restir.nbytes == 0
+    from core.film import read_exr
+    img = read_exr(tmp_path / "still.exr")
+    assert np.isfinite(img).all() and img.mean() > 0
+    scene.frame_start, scene.frame_end = 1, 2
+    scene.render.filepath = str(tmp_path / "f_####")
+    bpy.ops.render.render(animation=True)
+    assert stream.restir.history is not None and stream.last_frame == 2

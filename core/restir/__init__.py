@@ -16,13 +16,14 @@ import numpy as np
 
 from .. import materials, samplers
 from ..camera import PixelFilter
-from ..parallel import concat_rows
-from ..rows import gather, scale
-from .accumulation import STILL, accumulate, previous_pixels, restart
+from ..parallel import release_free_memory
+from ..rows import gather, scale, scatter
+from ..sampling import luminance
+from .accumulation import COLUMNS, STILL, Accumulation, accumulate, previous_pixels, restart
 from .adaptive_direct import light_sample_counts, reprojected_hold, update_noise_hold
 from ..reservoirs import finalize, merge
 from .boiling import boiling_filter
-from .gbuffer import trace_gbuffer
+from .gbuffer import FirstPass, FrameImage, trace_rows
 from .initial import COSINE, initial_samples
 from .shading import carried_visibility, shade_indirect
 from .shift import target_at
@@ -79,6 +80,10 @@ class ReSTIRGI:
     """Reservoirs and the previous frame: the temporal state of one image stream."""
 
     def __init__(self):
+        # False: core.render.render_restir lets the state go after its last
+        # frame (a still render, which nothing continues), before the caller
+        # copies the images out; reset() leaves it as set.
+        self.keep_history = True
         self.reset()
 
     def reset(self):
@@ -101,15 +106,23 @@ class ReSTIRGI:
         h = self.history
         if h is None:
             return 0
-        return h.temporal.nbytes + h.spatial.nbytes + sum(
+        return sum(r.nbytes for r in _distinct(h.temporal, h.spatial)) + sum(
             a.nbytes for a in (h.p, h.n, h.ng, h.depth, h.valid, h.object_id, h.noise_hold,
                                 h.visibility, h.accumulation) if a is not None)
 
     def render_frame(self, ctx, settings, frame):
         """One frame. Afterwards ``last_timings`` holds seconds per pass: wall
-        time for 'gbuffer', 'validation' and 'total', and for the passes the
-        workers run ('initial', 'temporal', 'spatial', 'shading') the sum
-        over workers, i.e. what they would take on one thread."""
+        time for 'validation' and 'total', and for the passes the workers run
+        ('gbuffer', 'initial', 'temporal', 'spatial', 'shading') the sum over
+        workers, i.e. what they would take on one thread."""
+        try:
+            return self._render_frame(ctx, settings, frame)
+        except BaseException:
+            if self.history is not None and self.history.temporal is None:
+                self.reset()        # last frame's state was partly let go (see _render_frame)
+            raise
+
+    def _render_frame(self, ctx, settings, frame):
         t_start = time.perf_counter()
         timings = {"gbuffer": 0.0, "validation": 0.0, "initial": 0.0, "temporal": 0.0,
                    "spatial": 0.0, "shading": 0.0}
@@ -125,9 +138,9 @@ class ReSTIRGI:
             self.reset()    # new resolution, or stored triangle/material ids mean nothing now
         biased = settings.mode != UNBIASED
         pixel_filter = PixelFilter(scene.filter_width)
-        gb = trace_gbuffer(ctx, settings.seed, frame, pixel_filter)
-        t = spent("gbuffer", t_start)
-        n = len(gb.valid)
+        gb_width, gb_height = scene.width, scene.height
+        n = gb_width * gb_height
+        t = time.perf_counter()
         pix = np.arange(n, dtype=np.int64)
         seeds = samplers.path_seeds(settings.seed, frame, pix, 0x5EED)
 
@@ -162,7 +175,7 @@ class ReSTIRGI:
             forget_old = moved
         if settings.validation_interval > 0:
             if history is not None and self._stale and self.frames % settings.validation_interval == 0:
-                validate(ctx, [history.temporal, history.spatial], settings.max_bounces)
+                validate(ctx, _distinct(history.temporal, history.spatial), settings.max_bounces)
                 self.validations += 1
                 self._stale = False
                 forget_all |= self._light_edit
@@ -172,15 +185,16 @@ class ReSTIRGI:
 
         # Every pass below is per pixel, so workers take pixel ranges
         # (core/parallel.py); spatial reuse reads neighbours from the whole
-        # image, so it waits for all temporal reservoirs.
+        # image, so it waits for all temporal reservoirs. Each range's outputs
+        # go straight into whole-image arrays (Workers.map_into), and its
+        # G-buffer hits and shading frames live only while the range runs:
+        # the second pass needs of them what the whole-image arrays hold.
         def new_samples(a, b):
             t = time.perf_counter()
-            part = gb.part(a, b)
+            part = trace_rows(ctx, settings.seed, frame, pixel_filter, True, a, b)
+            t = spent("gbuffer", t)
             prev = reproject(scene, part, history, motion) if settings.temporal else np.full(b - a, -1, np.int64)
             hold = reprojected_hold(prev, history.noise_hold) if history is not None else None
-            acc_prev = None
-            if accumulating and history is not None and history.accumulation is not None:
-                acc_prev = previous_pixels(scene, part, history, motion, still_scene=not moved)
             counts = light_sample_counts(part.index, prev, hold, settings.light_samples)
             # Initial samples (several per pixel are streamed into one reservoir).
             initial, direct, glossy = initial_samples(ctx, part, settings.seed, frame, 0,
@@ -197,16 +211,31 @@ class ReSTIRGI:
             t = spent("initial", t)
             temporal = temporal_resample(initial, part, history, prev, samplers.uniform(seeds[a:b], 5),
                                          settings.temporal_M_cap, settings.max_age, biased)
+            del initial
+            alpha, keep = materials.camera_alpha(scene, b - a, part.index, part.surf)
+            diffuse = scatter(np.zeros((b - a, 3), np.float32), part.index, part.frame.params.diffuse)
             spent("temporal", t)
-            return prev, hold, direct, glossy, temporal, acc_prev
+            return FirstPass(part.valid, part.depth, part.object_id, part.p, part.n, part.ng, part.albedo,
+                             part.emission + direct, luminance(direct).astype(np.float32), glossy, diffuse,
+                             alpha, keep, prev.astype(np.int32), hold, temporal)
 
-        prev_pix, hold, direct, glossy, temporal, acc_pix = concat_rows(ctx.workers.map(new_samples, n),
-                                                                          consume=True)
+        # The first pass's colours and factors go into the columns of the
+        # array that the second pass turns into this frame's running means
+        # (accumulation.COLUMNS), each range reading and then overwriting its
+        # own rows: no whole-image arrays of their own.
+        shaded = np.empty((n, COLUMNS), np.float32)
+        one = ctx.workers.map_into(new_samples, n, out=FirstPass.allocate(n, shaded, history is not None))
+        prev_pix, temporal = one.prev_pix, one.temporal
+        img = FrameImage(one.valid, one.depth, one.object_id, one.p, one.n, one.ng, gb_width, gb_height)
         ctx.accel.poll()    # the resampling passes trace no rays until shading
         if biased:      # the filter trades a little energy for stability: not in the unbiased mode
-            boiling_filter(temporal, gb.width, gb.height, settings.boiling_filter)
+            boiling_filter(temporal, img.width, img.height, settings.boiling_filter)
+        if history is not None and getattr(ctx.accel, "interrupt", None) is None:
+            # What the rest of the frame does not read of last frame's state
+            # is let go now (a frame that can be interrupted, the viewport's,
+            # keeps it all for the frame that follows).
+            history.temporal = history.n = history.ng = history.valid = history.noise_hold = None
 
-        gb.images()     # the whole-image arrays, made before the workers read them
         # The unbiased mode does not carry its spatial reservoirs: with 1/Z
         # weights a carried reservoir's weight is w_sum M / Z, and once visible
         # points move (the pixel filter's jitter, a moving camera) a small Z
@@ -217,9 +246,17 @@ class ReSTIRGI:
         cap = settings.spatial_M_cap
         carry = settings.spatial and biased and history is not None and bool((prev_pix >= 0).any())
         lum_wm = reuse_weights(temporal) if settings.spatial else None
+        prev_acc = None
+        if accumulating and history is not None and history.accumulation is not None:
+            prev_acc = history.accumulation
+            if forget_all:
+                restart(prev_acc)
+            elif forget_old:
+                restart(prev_acc, MOVING_CAP)
 
         def reuse(a, b):
             t = time.perf_counter()
+            part = img.part(a, b, one.diffuse)
             known = None
             if not settings.spatial:
                 spatial, visible_own = temporal.rows(a, b), None
@@ -234,61 +271,72 @@ class ReSTIRGI:
                     prev_spatial.M[prev_spatial.age > settings.max_age] = 0
                     prev_owner = gather(history.p, q)
                 spatial, visible_own, from_prev = spatial_resample(
-                    ctx, gb, temporal, prev_spatial, prev_owner, seeds, settings.spatial_neighbors,
+                    ctx, img, temporal, prev_spatial, prev_owner, seeds, settings.spatial_neighbors,
                     settings.spatial_radius, biased, rows=(a, b), lum_wm=lum_wm)
                 if carry and static and visible_own is None:
                     known = carried_visibility(np.take(history.visibility, q), from_prev, prev_owner,
-                                               gb.p[a:b], spatial.x2)
+                                               img.p[a:b], spatial.x2)
             t = spent("spatial", t)
-            part = gb.part(a, b)
             indirect, visibility = shade_indirect(ctx, part, spatial, visible_own, known)
-            alpha, keep = materials.camera_alpha(scene, b - a, part.index, part.surf)
+            if biased and settings.spatial:
+                # A sample hidden from its pixel is not carried to the next frame
+                # (RTXDI's "discard invisible samples"): with M up to the spatial
+                # cap it would win again and again, a black pixel for many frames.
+                # On the room this takes pixels without indirect light from 4.7 %
+                # to 1.5 % and the mean closer to the reference (bench/fig1.py's MSE
+                # is unchanged).
+                spatial.clear(visibility < 0)
+            direct_total = one.direct[a:b]
+            indirect += one.glossy[a:b]     # the glossy lobe's light, from this frame's own samples
+            keep = one.keep[a:b].copy()
+            if (keep < 1).any():    # Holdout: the pixel's share cut out, colour and all
+                direct_total, indirect = scale(direct_total, keep), scale(indirect, keep)
+            for x in (direct_total, indirect):
+                np.nan_to_num(x, copy=False, nan=0.0, posinf=0.0, neginf=0.0)
+            footprint = None
+            if prev_acc is not None:
+                footprint = previous_pixels(scene, part, history, motion, still_scene=not moved)
+            # (without accumulation: this frame's values, as a mean of one frame)
+            rows = accumulate(prev_acc, footprint, direct_total, indirect, one.albedo[a:b], img.n[a:b],
+                              settings.accumulate, one.alpha[a:b]).data
+            shaded[a:b] = rows
+            color = rows[:, 0:3] + rows[:, 3:6]
             spent("shading", t)
-            return spatial, visibility, indirect, alpha, keep
+            return (None if not settings.spatial else spatial), visibility, color
 
-        spatial, visibility, indirect, alpha_now, keep = concat_rows(ctx.workers.map(reuse, n), consume=True)
-        if biased and settings.spatial:
-            # A sample hidden from its pixel is not carried to the next frame
-            # (RTXDI's "discard invisible samples"): with M up to the spatial
-            # cap it would win again and again, a black pixel for many frames.
-            # On the room this takes pixels without indirect light from 4.7 %
-            # to 1.5 % and the mean closer to the reference (bench/fig1.py's MSE
-            # is unchanged).
-            spatial.clear(visibility < 0)
-        direct_total = gb.emission + direct
-        indirect += glossy      # the glossy lobe's light, from this frame's own samples
-        if (keep < 1).any():    # Holdout: the pixel's share cut out, colour and all
-            direct_total, indirect = scale(direct_total, keep), scale(indirect, keep)
-        for a in (direct_total, indirect):
-            np.nan_to_num(a, copy=False, nan=0.0, posinf=0.0, neginf=0.0)
-        acc = None
-        if accumulating:
-            prev_acc = history.accumulation if history is not None and acc_pix is not None else None
-            if forget_all:
-                restart(prev_acc)
-            elif forget_old:
-                restart(prev_acc, MOVING_CAP)
-            acc = accumulate(prev_acc, acc_pix if prev_acc is not None else None,
-                             direct_total, indirect, gb.albedo, gb.n, settings.accumulate, alpha_now)
-            direct_total, indirect, albedo, normal = acc.direct, acc.indirect, acc.albedo, acc.normal
-            alpha = acc.alpha
-        else:
-            albedo, normal, alpha = gb.albedo, gb.n, alpha_now
-        color = direct_total + indirect
+        spatial, visibility, color = ctx.workers.map_into(reuse, n)
+        if spatial is None:
+            spatial = temporal      # without spatial reuse the two are one
+        frame_acc = Accumulation(shaded)
+        acc = frame_acc if accumulating else None
+        direct_total, indirect, albedo, normal, alpha = frame_acc.direct, frame_acc.indirect, \
+            frame_acc.albedo, frame_acc.normal, frame_acc.alpha
+        hold = update_noise_hold(None, img.valid, img.width, img.height, one.hold, lum=one.lum_direct)
+        one = None     # the first pass's arrays: released before the history is made
+        for r in _distinct(temporal, spatial):
+            if hasattr(r, "keep_for_next_frame"):
+                r.keep_for_next_frame()
 
         self.history = FrameHistory(
-            width=gb.width, height=gb.height, camera=scene.camera, p=gb.p, n=gb.n,
-            ng=gb.ng, depth=gb.depth, valid=gb.valid, object_id=gb.object_id,
+            width=img.width, height=img.height, camera=scene.camera, p=img.p, n=img.n,
+            ng=img.ng, depth=img.depth, valid=img.valid, object_id=img.object_id,
             object_keys=list(scene.object_keys), object_matrices=np.asarray(scene.object_matrices),
             signature=_signature(scene), temporal=temporal, spatial=spatial, visibility=visibility,
-            noise_hold=update_noise_hold(direct, gb.valid, gb.width, gb.height, hold),
-            accumulation=acc)
+            noise_hold=hold, accumulation=acc)
         self.frames += 1
+        release_free_memory()   # the passes' temporaries, freed in the workers' heaps
         timings["total"] = time.perf_counter() - t_start
         self.last_timings = timings
-        found = float((prev_pix[gb.index] >= 0).mean()) if len(gb.index) else 0.0
-        return FrameResult(color, direct_total, indirect, gb.depth, normal, albedo,
+        visible_rows = prev_pix[img.valid]
+        found = float((visible_rows >= 0).mean()) if len(visible_rows) else 0.0
+        return FrameResult(color, direct_total, indirect, img.depth, normal, albedo,
                            spatial.M.copy(), spatial.W.copy(), found, alpha.copy())
+
+
+def _distinct(*sets):
+    """The reservoir sets, each once (without spatial reuse the spatial
+    reservoirs are the temporal ones)."""
+    return [r for i, r in enumerate(sets) if all(r is not other for other in sets[:i])]
 
 
 def _signature(scene):

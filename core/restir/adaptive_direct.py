@@ -41,10 +41,12 @@ def neighbourhood_range(values, valid, width, height):
     return mx.ravel(), mn.ravel()
 
 
-def update_noise_hold(direct, valid, width, height, prev_hold):
+def update_noise_hold(direct, valid, width, height, prev_hold, lum=None):
     """Frames each pixel (P,) stays flagged as noisy, from this frame's direct
-    light (P, 3) and the reprojected hold of last frame (P,) int8 (or None)."""
-    lum = luminance(direct).astype(np.float32)
+    light (P, 3) or its luminance lum (P,) float32, and the reprojected hold
+    of last frame (P,) int8 (or None)."""
+    if lum is None:
+        lum = luminance(direct).astype(np.float32)
     mx, mn = neighbourhood_range(lum, valid, width, height)
     floor = 1e-3 * float(lum[valid].mean()) if valid.any() else 0.0
     noisy = valid & (mx - mn > NOISE_RELATIVE * mx + floor)

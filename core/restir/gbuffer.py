@@ -3,6 +3,7 @@
 import dataclasses
 from dataclasses import dataclass
 from functools import cached_property
+from types import SimpleNamespace
 
 import numpy as np
 
@@ -11,6 +12,7 @@ from ..camera import generate_rays, view_depth
 from ..integrators.base import ShadingFrame
 from ..interaction import SurfaceHits, surface_hits
 from ..parallel import concat_rows
+from ..reservoirs import Reservoirs
 from ..rows import gather, scatter, scatter_add
 
 
@@ -69,13 +71,81 @@ class GBuffer:
         return self.p, self.n, self.ng
 
 
+@dataclass
+class FirstPass:
+    """Whole-image outputs of a frame's first pass (G-buffer, initial samples,
+    temporal resampling) that the rest of the frame reads."""
+    valid: np.ndarray       # (P,) bool
+    depth: np.ndarray       # (P,)
+    object_id: np.ndarray   # (P,) int32
+    p: np.ndarray           # (P, 3) visible points (zeros on misses)
+    n: np.ndarray           # (P, 3) shading normals
+    ng: np.ndarray          # (P, 3) geometric normals
+    albedo: np.ndarray      # (P, 3)
+    direct: np.ndarray      # (P, 3) emission seen directly + direct light
+    lum_direct: np.ndarray  # (P,) luminance of the direct light alone (adaptive_direct.py)
+    glossy: np.ndarray      # (P, 3) the glossy lobe's indirect light
+    diffuse: np.ndarray     # (P, 3) diffuse reflectance of the visible points
+    alpha: np.ndarray       # (P,) this frame's coverage (materials.camera_alpha)
+    keep: np.ndarray        # (P,) share of the pixel a holdout leaves
+    prev_pix: np.ndarray    # (P,) int32 last frame's pixel (-1: no history)
+    hold: np.ndarray        # (P,) int8 reprojected noise hold, or None
+    temporal: object        # Reservoirs
+
+    @staticmethod
+    def allocate(n, shaded, with_hold):
+        """Whole-image arrays for n pixels, the colours and factors in the
+        columns of ``shaded`` (P, 14): direct 0:3, glossy 3:6 and albedo 6:9
+        where the running means (accumulation.py) will have them, diffuse
+        9:12, keep 12 and alpha 13."""
+        vec = lambda: np.empty((n, 3), np.float32)  # noqa: E731
+        return FirstPass(np.empty(n, bool), np.empty(n, np.float32), np.empty(n, np.int32), vec(), vec(),
+                         vec(), shaded[:, 6:9], shaded[:, 0:3], np.empty(n, np.float32), shaded[:, 3:6],
+                         shaded[:, 9:12], shaded[:, 13], shaded[:, 12], np.empty(n, np.int32),
+                         np.empty(n, np.int8) if with_hold else None, Reservoirs.empty(0).whole_image(n))
+
+
+@dataclass
+class FrameImage:
+    """The whole-image G-buffer arrays of a frame (what spatial reuse reads of
+    neighbours, and the history kept for the next frame)."""
+    valid: np.ndarray
+    depth: np.ndarray
+    object_id: np.ndarray
+    p: np.ndarray
+    n: np.ndarray
+    ng: np.ndarray
+    width: int
+    height: int
+
+    def part(self, start, stop, diffuse):
+        """A GBuffer of pixels [start, stop) with what the passes after the
+        first read of its visible points: position, normals and (diffuse)
+        the diffuse reflectance, gathered from whole-image arrays."""
+        valid = self.valid[start:stop]
+        index = np.flatnonzero(valid)
+        surf = VisiblePoints(gather(self.p[start:stop], index), gather(self.ng[start:stop], index),
+                             gather(self.n[start:stop], index))
+        frame = SimpleNamespace(params=SimpleNamespace(diffuse=gather(diffuse[start:stop], index)))
+        return GBuffer(valid, surf, frame, index, self.depth[start:stop], self.object_id[start:stop],
+                       None, None, self.width, self.height, start)
+
+
+@dataclass
+class VisiblePoints:
+    """The fields of SurfaceHits that shading and reprojection read."""
+    p: np.ndarray
+    ng: np.ndarray
+    ns: np.ndarray
+
+
 def trace_gbuffer(ctx, seed, frame, pixel_filter, jitter=True):
     """Trace one primary ray per pixel (jittered by the pixel filter), the
     pixel ranges on the context's workers."""
     scene = ctx.scene
     n = scene.width * scene.height
     ranges = ctx.workers.ranges(n)
-    parts = ctx.workers.map(lambda a, b: _trace_rows(ctx, seed, frame, pixel_filter, jitter, a, b), n)
+    parts = ctx.workers.map(lambda a, b: trace_rows(ctx, seed, frame, pixel_filter, jitter, a, b), n)
     if len(parts) == 1:
         return parts[0]
     # The whole image's per-pixel arrays; its hits and shading frames stay
@@ -88,7 +158,7 @@ def trace_gbuffer(ctx, seed, frame, pixel_filter, jitter=True):
     return joined
 
 
-def _trace_rows(ctx, seed, frame, pixel_filter, jitter, start, stop):
+def trace_rows(ctx, seed, frame, pixel_filter, jitter, start, stop):
     """The GBuffer of pixels [start, stop) (offset start)."""
     scene = ctx.scene
     w, h = scene.width, scene.height

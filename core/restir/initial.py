@@ -225,8 +225,7 @@ def initial_samples(ctx, gb, seed, frame, sample, max_bounces, sampling=COSINE, 
     for name, value in (("x2", surf2.p), ("ng2", surf2.ng), ("n2", surf2.ns), ("wo2", surf2.wo),
                         ("lo", lo)):
         scatter(getattr(res, name), pix, value)
-    res.prim2[pix], res.mat2[pix] = surf2.prim, surf2.material
-    res.pdf[pix], res.seed[pix] = pdf[rows2], seeds[rows2]
+    res.prim2[pix], res.seed[pix] = surf2.prim, seeds[rows2]
     lo_glossy = lo
     # Rays that escaped sample the world: a far point in their direction whose
     # radiance is the world's (less NEE's share), so sky light is resampled
@@ -244,7 +243,6 @@ def initial_samples(ctx, gb, seed, frame, sample, max_bounces, sampling=COSINE, 
             scatter(getattr(res, name), pm, -wi_m)
         res.prim2[pm] = res.WORLD_SAMPLE
         scatter(res.lo, pm, scale(le, 1.0 - world_share(lights, wi_m)).astype(np.float32))
-        res.pdf[pm] = pdf[miss]
         res.seed[pm] = seeds[miss]
         rows2, pix = np.concatenate([rows2, miss]), np.concatenate([pix, pm])
     lo_all = gather(res.lo, pix)

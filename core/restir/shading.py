@@ -50,12 +50,12 @@ def shade_indirect(ctx, gb, res, visible_own=None, known=None):
     to = y.x2 - surf.p
     dist = np.sqrt(np.maximum(dot(to, to), 1e-30))
     wi = scale(to, 1.0 / dist).astype(np.float32)
-    frame = gb.frame
-    wi_l = frame.local(surf, wi)
     # The diffuse lobe only: the glossy lobe's indirect light comes from each
-    # pixel's own new sample (initial.py).
-    cos = np.maximum(wi_l[:, 2], 0.0)
-    f = scale(frame.params.diffuse, (wi_l[:, 2] > 0) * INV_PI)
+    # pixel's own new sample (initial.py). Its cosine is the local z of wi in
+    # the shading frame, i.e. along the shading normal.
+    cos_l = dot(wi, surf.ns)
+    cos = np.maximum(cos_l, 0.0)
+    f = scale(gb.frame.params.diffuse, (cos_l > 0) * INV_PI)
     if visible_own is not None:
         vis = visible_own[idx]
         s = np.where(vis, 1, -1)

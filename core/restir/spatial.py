@@ -83,7 +83,7 @@ def spatial_resample(ctx, gb, temporal, prev_spatial, prev_owner_p, seeds, k, ra
         ok &= dot(nrm, nrm_nb) >= NORMAL_COS_MIN
         ok &= np.abs(np.take(gb.depth, nb) - depth) <= DEPTH_REL_MAX * depth
         p_nb = gather(p_all, nb)
-        weight = shift_weight_of(gather(temporal.x2, nb), gather(temporal.ng2, nb), np.take(lum_wm, nb),
+        weight = shift_weight_of(gather(temporal.x2, nb), temporal.field("ng2", nb), np.take(lum_wm, nb),
                                  p_nb, p, ng, nrm, biased)
         weight *= ok
         m = np.where(ok, np.take(temporal.M, nb), 0.0).astype(np.float32)
@@ -104,7 +104,7 @@ def spatial_resample(ctx, gb, temporal, prev_spatial, prev_owner_p, seeds, k, ra
             from_prev |= won
     res = Reservoirs.empty(n)
     for name in Reservoirs.SAMPLE_FIELDS:
-        setattr(res, name, gather(getattr(temporal, name), src_row))
+        setattr(res, name, temporal.field(name, src_row))
     prev_won = np.nonzero(from_prev)[0]
     if len(prev_won):
         for name in Reservoirs.SAMPLE_FIELDS:

@@ -11,7 +11,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..camera import project
-from ..reservoirs import Reservoirs, finalize, merge
+from ..reservoir_store import StoredReservoirs
+from ..reservoirs import finalize, merge
 from ..sampling import dot
 from ..rows import gather
 from .accumulation import COLUMNS
@@ -36,8 +37,8 @@ class FrameHistory:
     object_keys: list       # object key of each object id
     object_matrices: np.ndarray  # (O, 4, 4)
     signature: tuple        # resolution and scene sizes the reservoirs refer to
-    temporal: Reservoirs
-    spatial: Reservoirs
+    temporal: StoredReservoirs
+    spatial: StoredReservoirs   # (the temporal ones without spatial reuse)
     noise_hold: np.ndarray = None   # (P,) int8 frames left of "direct light noisy" (adaptive_direct)
     visibility: np.ndarray = None   # (P,) int8 spatial samples' visibility states (shading.py)
     accumulation: object = None     # running means of the shaded frames (accumulation.py)
@@ -51,9 +52,10 @@ _FLAG_BYTES = 1 + 1
 
 def state_bytes_per_pixel(accumulating=True):
     """Bytes per pixel of what a frame keeps for the next (FrameHistory):
-    the temporal and spatial reservoirs, the G-buffer history, two flags and,
-    when frames are accumulated, the running means (docs/memory.md)."""
-    return (2 * Reservoirs.empty(1).nbytes + _GBUFFER_BYTES + _FLAG_BYTES
+    the temporal and spatial reservoirs (narrowed: reservoir_store.py), the
+    G-buffer history, two flags and, when frames are accumulated, the running
+    means (docs/memory.md)."""
+    return (2 * StoredReservoirs.bytes_per_row(kept=True) + _GBUFFER_BYTES + _FLAG_BYTES
             + (COLUMNS * 4 if accumulating else 0))
 
 
@@ -126,7 +128,8 @@ def carry_with_objects(scene, history):
         return 0
     history.p = history.p.copy()        # last frame's G-buffer array: not ours to change
     sets = [history.temporal]
-    if not np.shares_memory(history.spatial.x2, history.temporal.x2):
+    if history.spatial is not history.temporal \
+            and not np.shares_memory(history.spatial.x2, history.temporal.x2):
         sets.append(history.spatial)
     count = 0
     for i, (j, to_prev) in moved.items():
@@ -137,7 +140,11 @@ def carry_with_objects(scene, history):
         for res in sets:
             on = np.nonzero((res.prim2 >= 0) & (np.take(scene.object_ids, np.maximum(res.prim2, 0)) == i))[0]
             if len(on):
-                _move_rows(to_cur, on, points=(res.x2,), directions=(res.wo2,), normals=(res.ng2, res.n2))
+                moving = res.take(on)
+                every = np.arange(len(on))
+                _move_rows(to_cur, every, points=(moving.x2,), directions=(moving.wo2,),
+                           normals=(moving.ng2, moving.n2))
+                res.put(on, moving)
                 count += len(on)
     return count
 

@@ -15,7 +15,6 @@ from ..integrators.bounces import first_bounce_counts
 from ..integrators.path import radiance_from_surface
 from ..interaction import SurfaceHits
 from ..parallel import concat_rows
-from ..rows import gather
 from ..sampling import luminance
 from .initial import visible_point_lights, world_sample_radiance
 
@@ -32,10 +31,10 @@ def validate(ctx, res, max_bounces, threshold=CHANGE_THRESHOLD):
     for r in sets:
         sky = np.nonzero((r.prim2 == r.WORLD_SAMPLE) & (r.M > 0))[0]
         if len(sky):
-            old = luminance(r.lo[sky])
-            new = luminance(world_sample_radiance(visible_point_lights(ctx.lights), -gather(r.wo2, sky)))
+            old = luminance(r.field("lo", sky))
+            new = luminance(world_sample_radiance(visible_point_lights(ctx.lights), -r.field("wo2", sky)))
             changed_sky = sky[_changed(old, new, threshold)]
-            r.M[changed_sky] = r.W[changed_sky] = r.w_sum[changed_sky] = 0
+            r.drop(changed_sky)
             dropped += len(changed_sky)
     rows = [np.nonzero((r.prim2 >= 0) & (r.M > 0))[0] for r in sets]
     if sum(len(x) for x in rows) == 0 or max_bounces < 1:
@@ -47,10 +46,11 @@ def validate(ctx, res, max_bounces, threshold=CHANGE_THRESHOLD):
     _, first, back = np.unique(seeds, return_index=True, return_inverse=True)
 
     def field(name, at):
-        return np.concatenate([gather(getattr(r, name), x) for r, x in zip(sets, rows)])[at]
+        return np.concatenate([r.field(name, x) for r, x in zip(sets, rows)])[at]
 
     x2, ng2, n2, wo2 = (field(name, first) for name in ("x2", "ng2", "n2", "wo2"))
-    prim2, mat2, seed = field("prim2", first), field("mat2", first), seeds[first]
+    prim2, seed = field("prim2", first), seeds[first]
+    mat2 = np.take(ctx.scene.material_ids, prim2)
 
     def retrace(a, b):      # the paths of distinct samples a..b, on the context's workers
         k = slice(a, b)
@@ -63,9 +63,7 @@ def validate(ctx, res, max_bounces, threshold=CHANGE_THRESHOLD):
     changed = _changed(luminance(field("lo", slice(None))), luminance(lo_new), threshold)
     for i, r in enumerate(sets):
         drop = row[(which == i) & changed]
-        r.M[drop] = 0
-        r.W[drop] = 0
-        r.w_sum[drop] = 0
+        r.drop(drop)
         dropped += len(drop)
     return int(dropped)
 
