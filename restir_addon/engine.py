@@ -2,7 +2,7 @@
 
 import bpy
 
-from . import final, state, viewport
+from . import final, viewport
 from .passes import register_passes
 
 
@@ -13,11 +13,6 @@ class RestirGIRenderEngine(bpy.types.RenderEngine):
     bl_use_postprocess = True
 
     def render(self, depsgraph):
-        # A still is never continued (a render continues only an animation's
-        # previous frame): its ReSTIR state is let go after its last frame,
-        # before the images are copied to Blender, where a still peaks.
-        stream = state.stream_for(depsgraph.scene.name, depsgraph.view_layer.name)
-        stream.restir.keep_history = bool(self.is_animation)
         final.render(self, depsgraph)
 
     def update_render_passes(self, scene=None, renderlayer=None):

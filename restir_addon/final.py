@@ -226,6 +226,10 @@ def render(engine, depsgraph):
     try:
         engine.update_stats("", "Exporting scene")
         stream = state.stream_for(scene.name, depsgraph.view_layer.name)
+        # A still is never continued (a render continues only an animation's
+        # previous frame): its ReSTIR state is let go after its last frame,
+        # before the images are copied to Blender, where a still peaks.
+        stream.restir.keep_history = bool(engine.is_animation)
         continuing = engine.is_animation and stream.last_frame == scene.frame_current - 1
         frame_scene = stream.frame_scene
         has_camera = frame_scene.update(depsgraph, width, height)
