@@ -17,6 +17,11 @@ import numpy as np
 from .. import materials, samplers
 from ..camera import PixelFilter
 from ..parallel import release_free_memory
+
+# Below this many pixels a frame's freed temporaries are left in the heaps:
+# giving them back makes the next frame fault their pages in again (about
+# 7 % of a 320x180 frame), and they are small (docs/plan.md, issue 12).
+TRIM_MIN_PIXELS = 1 << 20
 from ..rows import gather, scale, scatter
 from ..sampling import luminance
 from .accumulation import COLUMNS, STILL, Accumulation, accumulate, previous_pixels, restart
@@ -324,7 +329,8 @@ class ReSTIRGI:
             signature=_signature(scene), temporal=temporal, spatial=spatial, visibility=visibility,
             noise_hold=hold, accumulation=acc)
         self.frames += 1
-        release_free_memory()   # the passes' temporaries, freed in the workers' heaps
+        if len(img.valid) >= TRIM_MIN_PIXELS:
+            release_free_memory()   # the passes' temporaries, freed in the workers' heaps
         timings["total"] = time.perf_counter() - t_start
         self.last_timings = timings
         visible_rows = prev_pix[img.valid]
