@@ -33,9 +33,10 @@ def radiance_from_surface(ctx, surf, seeds, bounce0, max_bounces, frame=None, co
     bounce0 is the bounce index of ``surf`` (0 for camera hits). Every vertex up
     to bounce ``max_bounces`` gets NEE and a BSDF ray, both weighted by MIS; the
     BSDF ray of the last vertex only collects emission. ``max_bounces`` may be
-    a bounces.Bounces with limits per kind of bounce, which end a path at the
-    vertex where one is reached; ``counts`` (N, 3): the bounces of each kind
-    the paths made before ``surf`` (zero if None). ``frame``: the
+    a bounces.Bounces with limits per kind of bounce: a ray that takes its
+    kind's count past its limit only collects emission, and its path ends
+    there; ``counts`` (N, 3): the bounces of each kind the paths made before
+    ``surf`` (zero if None; a path already past a limit gives nothing). ``frame``: the
     ShadingFrame of ``surf`` if the caller has it. Returns (N, 3) float32.
     """
     scene = ctx.scene
