@@ -70,11 +70,11 @@ class BSDFParams:
         return self.p_sheen is not None
 
 
-def without_lobes(params, hidden):
-    """A copy of params whose lobes of the hidden kinds give no light:
-    hidden (N, 3) bool per row for diffuse (Lambert, sheen), glossy (GGX
-    reflection, glass reflection) and transmission (glass refraction)."""
-    p = params.subset(np.arange(len(hidden)))
+def without_lobes(p, hidden):
+    """params ``p`` (a copy the caller owns, changed in place and returned)
+    whose lobes of the hidden kinds give no light: hidden (N, 3) bool per row
+    for diffuse (Lambert, sheen), glossy (GGX reflection, glass reflection)
+    and transmission (glass refraction)."""
     keep = (~hidden).astype(np.float32)
 
     def zero(name, col):
@@ -422,3 +422,21 @@ def sample(params, wo, u_lobe, u):
     wi = wi.astype(np.float32, copy=False)
     f, p = _lobes(params, wo, wi, True, True)
     return wi, f, p
+
+
+KIND_DIFFUSE, KIND_GLOSSY, KIND_TRANSMISSION = 0, 1, 2
+
+
+def sampled_kinds(params, wo, wi, u_lobe):
+    """Kind of bounce of each direction ``sample`` drew with the lobe choice
+    u_lobe (integrators/bounces.py): below the surface transmission; above
+    it glossy from the specular and glass lobes, diffuse from the others
+    (diffuse, sheen), in the order ``sample`` picks lobes."""
+    kinds = np.full(len(wi), KIND_DIFFUSE, np.int8)
+    above = wi[:, 2] > 0
+    glossy = u_lobe < _p_spec(params, wo)
+    if params.has_glass:
+        glossy |= u_lobe < _p_spec(params, wo) + _p_glass(params, wo)
+    kinds[glossy & above] = KIND_GLOSSY
+    kinds[~above] = KIND_TRANSMISSION
+    return kinds

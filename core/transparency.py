@@ -69,6 +69,7 @@ class TransparentAccel:
         per_kind = [self.hidden[k] for k in KIND_NAMES]
         self.per_kind_visibility = any((h != per_kind[0]).any() for h in per_kind[1:])
         self._hidden_by_kind = np.stack(per_kind) if self.per_kind_visibility else None
+        self._hidden_by_any = self._hidden_by_kind.any(axis=0) if self.per_kind_visibility else None
 
     def __getattr__(self, name):
         return getattr(self.inner, name)
@@ -80,7 +81,7 @@ class TransparentAccel:
             return self._closest(origins, directions, tmax, self.hidden["camera"])
         if kinds is None or self._hidden_by_kind is None:
             return self._closest(origins, directions, tmax, self.hidden["diffuse"])
-        return self._closest(origins, directions, tmax, self._hidden_by_kind.any(axis=0),
+        return self._closest(origins, directions, tmax, self._hidden_by_any,
                              lambda rows, prim: self._hidden_by_kind[kinds[rows], prim])
 
     def _closest(self, origins, directions, tmax, hidden, hidden_at=None):

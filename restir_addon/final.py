@@ -154,8 +154,12 @@ def _chunk_warmup(engine, depsgraph, stream, width, height):
     memory.check_image(width, height, held=stream.restir.nbytes)
     settings = restir_settings(scene)
     frame_scene = stream.frame_scene
-    stream.restir.reset()
-    stream.last_frame = None
+
+    def restart():
+        stream.restir.reset()
+        stream.last_frame = None
+
+    restart()
     start = time.perf_counter()
     try:
         for f in range(first, frame):
@@ -163,8 +167,7 @@ def _chunk_warmup(engine, depsgraph, stream, width, height):
                 return False
             engine.frame_set(f, 0.0)
             if not frame_scene.update(depsgraph, width, height) or frame_scene.context is None:
-                stream.restir.reset()
-                stream.last_frame = None
+                restart()
                 continue
             fresh = stream.last_frame is None
             frames = scene.restir_gi.samples
@@ -177,8 +180,7 @@ def _chunk_warmup(engine, depsgraph, stream, width, height):
             out = render_restir(frame_scene.context, stream.restir, settings, f, frames,
                                 fresh=fresh, should_stop=engine.test_break)
             if out is None:
-                stream.restir.reset()
-                stream.last_frame = None
+                restart()
                 return False
             stream.last_frame, stream.last_camera = f, _camera_name(scene)
     finally:

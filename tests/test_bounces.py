@@ -8,7 +8,7 @@ import numpy as np
 
 from core import bsdf
 from core.integrators.bounces import (DIFFUSE, GLOSSY, TRANSMISSION, Bounces, binding, count,
-                                      first_bounce_counts, lobe_kinds, per_kind)
+                                      first_bounce_counts, per_kind)
 
 
 def test_bounces_is_the_total_with_limits_per_kind():
@@ -41,7 +41,7 @@ def test_kind_of_each_sampled_lobe(rng):
     params = bsdf.lobe_params(np.full((n, 3), 0.5, np.float32), np.full((n, 3), 0.5, np.float32),
                               np.full(n, 0.3, np.float32))
     wi, _, pdf = bsdf.sample(params, wo, u_lobe, u)
-    kinds = lobe_kinds(params, wo, wi, u_lobe)
+    kinds = bsdf.sampled_kinds(params, wo, wi, u_lobe)
     spec = u_lobe < params.p_spec
     ok = (pdf > 0) & (wi[:, 2] > 0)         # GGX reflections below the surface are discarded
     assert ok.mean() > 0.9
@@ -51,7 +51,7 @@ def test_kind_of_each_sampled_lobe(rng):
                              glass=(np.ones((n, 3), np.float32), np.ones((n, 3), np.float32),
                                     np.full(n, 1.5, np.float32), np.full(n, 0.1, np.float32)))
     wi, _, pdf = bsdf.sample(glass, wo, u_lobe, u)
-    kinds = lobe_kinds(glass, wo, wi, u_lobe)
+    kinds = bsdf.sampled_kinds(glass, wo, wi, u_lobe)
     ok = pdf > 0
     below = wi[:, 2] < 0
     assert (kinds[ok & below] == TRANSMISSION).all() and (kinds[ok & ~below] == GLOSSY).all()

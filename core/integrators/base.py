@@ -11,7 +11,6 @@ from ..lights import INF_DIST, LightSet
 from ..parallel import SERIAL, Workers
 from ..rows import gather, row_max, rows_finite, scale, scatter
 from ..sampling import dot, orthonormal_basis, power_heuristic, to_local, to_world
-from .bounces import lobe_kinds
 
 RAY_EPS_RELATIVE = 1e-5     # origin offset relative to the scene's extent
 
@@ -174,5 +173,5 @@ def sample_continuation(ctx, surf, frame, seeds, bounce, kinds=False):
     valid &= rows_finite(weight) & (row_max(weight) > 0)
     weight = scale(np.nan_to_num(weight, copy=False), valid.astype(np.float32)).astype(np.float32)
     if kinds:
-        return wi, weight, pdf, valid, lobe_kinds(frame.params, frame.wo_local, wi_local, u_lobe)
+        return wi, weight, pdf, valid, bsdf.sampled_kinds(frame.params, frame.wo_local, wi_local, u_lobe)
     return wi, weight, pdf, valid

@@ -10,9 +10,11 @@ As in Cycles (whose kernel limits are the settings plus one), the ray that
 takes a kind's count over its limit is still traced for the emission it
 finds (weighted by MIS against the light sampled at its origin), and the path
 ends at its hit; a path that reached its diffuse limit goes on through
-glossy and transmission bounces. The total works the same way
-(path.py's loop over bounces). The kind also picks the object ray visibility that applies
-(Object > Visibility > Ray Visibility: Diffuse, Glossy, Transmission).
+glossy and transmission bounces. The total works the same way (path.py's
+loop over bounces). The kind also picks the object ray visibility that
+applies (Object > Visibility > Ray Visibility: Diffuse, Glossy,
+Transmission). The kind of a sampled ray comes from bsdf.sampled_kinds,
+next to the sampler whose lobe choice it follows.
 
 ``Bounces`` is the total limit as an int, so code that only needs the total
 keeps using it as one, with the per-kind limits as attributes.
@@ -20,7 +22,7 @@ keeps using it as one, with the per-kind limits as attributes.
 
 import numpy as np
 
-DIFFUSE, GLOSSY, TRANSMISSION = 0, 1, 2
+from ..bsdf import KIND_DIFFUSE as DIFFUSE, KIND_GLOSSY as GLOSSY, KIND_TRANSMISSION as TRANSMISSION  # noqa: F401
 KIND_NAMES = ("diffuse", "glossy", "transmission")
 
 
@@ -61,20 +63,6 @@ def per_kind(max_bounces):
 
 def binding(max_bounces):
     return bool(getattr(max_bounces, "binding", False))
-
-
-def lobe_kinds(params, wo_local, wi_local, u_lobe):
-    """Kind of each ray drawn by bsdf.sample with the lobe choice u_lobe."""
-    from ..bsdf import _p_glass, _p_spec      # noqa: PLC0415 (bsdf imports nothing from here)
-    kinds = np.full(len(wi_local), DIFFUSE, np.int8)
-    p_spec = _p_spec(params, wo_local)
-    above = wi_local[:, 2] > 0
-    glossy = u_lobe < p_spec
-    if params.has_glass:
-        glossy |= u_lobe < p_spec + _p_glass(params, wo_local)
-    kinds[glossy & above] = GLOSSY
-    kinds[~above] = TRANSMISSION
-    return kinds
 
 
 def count(counts, kinds, limits):

@@ -34,7 +34,7 @@ import numpy as np
 from .. import bsdf, samplers
 from ..accel import offset_origins
 from ..integrators.base import direct_light
-from ..integrators.bounces import DIFFUSE, binding, first_bounce_counts, lobe_kinds
+from ..integrators.bounces import DIFFUSE, binding, first_bounce_counts
 from ..integrators.path import radiance_from_surface
 from ..interaction import surface_hits
 from ..reservoirs import Reservoirs, target
@@ -154,7 +154,7 @@ def initial_samples(ctx, gb, seed, frame, sample, max_bounces, sampling=COSINE, 
         wi_b, _, _ = bsdf.sample(params.subset(glossy), wo_l[glossy], u_lobe[glossy], u[glossy])
         wi_l[glossy] = wi_b
         if kinds is not None:
-            kinds[glossy] = lobe_kinds(params.subset(glossy), wo_l[glossy], wi_b, u_lobe[glossy])
+            kinds[glossy] = bsdf.sampled_kinds(params.subset(glossy), wo_l[glossy], wi_b, u_lobe[glossy])
     pdf = _source_pdf(params, wo_l, wi_l, sampling)
     wi = frame_sh.world(surf, wi_l)
     f = bsdf.evaluate(params, wo_l, wi_l)
