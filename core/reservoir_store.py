@@ -12,6 +12,9 @@ image's temporal and spatial reservoirs are stored here and read back by row:
 
 Positions, weights, counts and seeds keep their types: reuse compares
 positions at scene scale and sums weights over many frames.
+
+Images below NARROW_MIN_PIXELS keep float32 ``Reservoirs`` instead: there the
+state is small and decoding it was about 8 % of a 320x180 frame.
 """
 
 from dataclasses import dataclass, fields
@@ -21,9 +24,27 @@ import numpy as np
 from .reservoirs import Reservoirs, SampleView
 from .rows import gather
 
+# Images of at least this many pixels store their reservoirs narrowed; below
+# it the 36 bytes per pixel and reservoir saved cost more time than they are
+# worth (docs/memory.md).
+NARROW_MIN_PIXELS = 1 << 20
+
 _ZERO = -32768                  # octahedral code of a zero vector (snorm16 uses +-32767)
 _F16_MAX = np.float32(65504.0)
 _DIRECTIONS = ("ng2", "n2", "wo2")
+
+
+def whole_image(n):
+    """The whole-image reservoirs of an image of n pixels (empty)."""
+    return StoredReservoirs.empty(n) if n >= NARROW_MIN_PIXELS else Reservoirs.empty(n)
+
+
+def bytes_per_row(pixels, kept=False):
+    """Bytes per pixel of the whole-image reservoirs of an image of ``pixels``
+    pixels; kept: as kept for the next frame (narrow ones without w_sum)."""
+    if pixels >= NARROW_MIN_PIXELS:
+        return StoredReservoirs.bytes_per_row(kept)
+    return Reservoirs.empty(1).nbytes
 
 
 def encode_unit(v):

@@ -90,10 +90,11 @@ class Reservoirs:
             getattr(self, f.name)[start:stop] = getattr(other, f.name)
 
     def whole_image(self, n):
-        """Where Workers.map_into gathers ranges' reservoirs: the narrow
-        whole-image store (reservoir_store.py)."""
-        from .reservoir_store import StoredReservoirs
-        return StoredReservoirs.empty(n)
+        """Where Workers.map_into gathers ranges' reservoirs: for images of
+        reservoir_store.NARROW_MIN_PIXELS or more the narrow store, below it
+        float32 rows like these (reservoir_store.whole_image)."""
+        from .reservoir_store import whole_image
+        return whole_image(n)
 
     def take(self, index):
         """Rows gathered by an index array (a copy)."""

@@ -26,8 +26,8 @@ default pixel filter (Blackman-Harris, 1.5 px). Cycles keeps its default bounce
 limits (total 12, diffuse 4, glossy 4) but with ``sample_clamp_indirect = 0``
 and ``blur_glossy = 0`` (both default on and biased), and denoising and
 adaptive sampling off, so Cycles is unbiased and comparable with the engine.
-The engine's settings (``scene.restir_gi``): ReSTIR GI biased, max_bounces 4
-(matched to Cycles' 4 diffuse / 4 glossy), 16 warm-up frames.
+The engine's settings (``scene.restir_gi``): ReSTIR GI biased, Cycles' bounce
+limits (total 12, diffuse 4, glossy 4, transmission 12), 16 warm-up frames.
 
 Only what the engine supports: Diffuse, Principled (constant inputs) and
 Emission materials, point / spot / sun / area lights, a world made of one
@@ -62,7 +62,7 @@ def corpus_scene(name):
 def finish(scene, cam, offset, rotation_deg, filename):
     keyframe_move(cam, 1, FRAMES, offset, rotation_deg)
     scene.frame_set(1)
-    use_restir(scene, max_bounces=4, warmup_frames=16)
+    use_restir(scene, max_bounces=12, warmup_frames=16)
     return save(filename)
 
 

@@ -11,9 +11,14 @@ from core.restir.temporal import state_bytes_per_pixel
 from scenes import cornell_box
 
 
+@pytest.mark.parametrize("narrow", [True, False])
 @pytest.mark.parametrize("accumulate", [16, 1])
 @pytest.mark.parametrize("mode", [BIASED, UNBIASED])
-def test_state_size_matches_the_arrays_held(mode, accumulate):
+def test_state_size_matches_the_arrays_held(mode, accumulate, narrow, monkeypatch):
+    """Narrow reservoirs (images of NARROW_MIN_PIXELS and more) and float32 ones."""
+    import core.reservoir_store as store
+    if narrow:
+        monkeypatch.setattr(store, "NARROW_MIN_PIXELS", 1)
     scene = cornell_box("area", 40, 24)
     ctx = RenderContext.build(scene)
     try:
@@ -21,18 +26,19 @@ def test_state_size_matches_the_arrays_held(mode, accumulate):
         settings = ReSTIRSettings(mode=mode, max_bounces=2, seed=1, accumulate=accumulate)
         for f in range(2):
             restir.render_frame(ctx, settings, f)
-        assert restir.nbytes == 40 * 24 * state_bytes_per_pixel(accumulating=accumulate > 1)
+        assert restir.nbytes == 40 * 24 * state_bytes_per_pixel(accumulate > 1, pixels=40 * 24)
     finally:
         ctx.close()
 
 
 @pytest.mark.parametrize("mode", [BIASED, UNBIASED])
 def test_narrow_state_changes_images_by_float16_rounding_only(mode, monkeypatch):
-    """The whole-image reservoirs are stored narrowed (core/reservoir_store.py).
-    Against the same frames with float32 reservoirs, what does not depend on
-    them is bit for bit the same and the indirect light differs by about
-    float16's rounding of the reused radiance."""
-    from core.reservoirs import Reservoirs
+    """Large images store their whole-image reservoirs narrowed
+    (core/reservoir_store.py). Against the same frames with float32
+    reservoirs (as small images keep them), what does not depend on them is
+    bit for bit the same and the indirect light differs by about float16's
+    rounding of the reused radiance."""
+    import core.reservoir_store as store
     scene = cornell_box("area", 48, 32)
 
     def frames():
@@ -44,9 +50,10 @@ def test_narrow_state_changes_images_by_float16_rounding_only(mode, monkeypatch)
         finally:
             ctx.close()
 
-    narrow = frames()
-    monkeypatch.setattr(Reservoirs, "whole_image", lambda self, n: Reservoirs.empty(n))
     wide = frames()
+    monkeypatch.setattr(store, "NARROW_MIN_PIXELS", 1)
+    narrow = frames()
+    assert not np.array_equal(narrow[-1].indirect, wide[-1].indirect)
     for a, b in zip(narrow, wide):
         for name in ("direct", "normal", "albedo", "depth", "alpha"):
             assert np.array_equal(getattr(a, name), getattr(b, name)), name

@@ -17,16 +17,11 @@ import numpy as np
 from .. import materials, samplers
 from ..camera import PixelFilter
 from ..parallel import release_free_memory
-
-# Below this many pixels a frame's freed temporaries are left in the heaps:
-# giving them back makes the next frame fault their pages in again (about
-# 7 % of a 320x180 frame), and they are small (docs/plan.md, issue 12).
-TRIM_MIN_PIXELS = 1 << 20
+from ..reservoirs import finalize, merge
 from ..rows import gather, scale, scatter
 from ..sampling import luminance
-from .accumulation import COLUMNS, STILL, Accumulation, accumulate, previous_pixels, restart
+from .accumulation import COLUMNS, Accumulation, accumulate, previous_pixels, restart
 from .adaptive_direct import light_sample_counts, reprojected_hold, update_noise_hold
-from ..reservoirs import finalize, merge
 from .boiling import boiling_filter
 from .gbuffer import FirstPass, FrameImage, trace_rows
 from .initial import COSINE, initial_samples
@@ -37,6 +32,10 @@ from .temporal import FrameHistory, ObjectMotion, carry_with_objects, reproject,
 from .validation import validate
 
 BIASED = "RESTIR_BIASED"
+# Below this many pixels a frame's freed temporaries are left in the heaps:
+# giving them back makes the next frame fault their pages in again (about
+# 7 % of a 320x180 frame), and they are small (docs/plan.md, issue 12).
+TRIM_MIN_PIXELS = 1 << 20
 MOVING_CAP = 4      # frames of accumulated history kept in a frame where objects moved
 UNBIASED = "RESTIR_UNBIASED"
 
@@ -62,6 +61,9 @@ class ReSTIRSettings:
                                     # worth it before accumulation; now 4 gives the same room
                                     # MSE and costs far less where most pixels are flagged
                                     # (glossy corpus scene: 716 -> 376 ms per frame)
+    still_temporal_M_cap: float = 4.0   # temporal cap of a still's frames after it settles
+                                        # (core/render.py): less correlated frames, so
+                                        # their mean converges faster (docs/plan.md)
     accumulate: int = 16            # frames in each pixel's running mean (accumulation.py);
                                     # 1 turns it off, accumulation.STILL averages every frame
 

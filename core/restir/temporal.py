@@ -11,7 +11,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..camera import project
-from ..reservoir_store import StoredReservoirs
+from ..reservoir_store import NARROW_MIN_PIXELS, StoredReservoirs, bytes_per_row
 from ..reservoirs import finalize, merge
 from ..sampling import dot
 from ..rows import gather
@@ -50,12 +50,13 @@ _GBUFFER_BYTES = 3 * 3 * 4 + 4 + 1 + 4
 _FLAG_BYTES = 1 + 1
 
 
-def state_bytes_per_pixel(accumulating=True):
-    """Bytes per pixel of what a frame keeps for the next (FrameHistory):
-    the temporal and spatial reservoirs (narrowed: reservoir_store.py), the
-    G-buffer history, two flags and, when frames are accumulated, the running
-    means (docs/memory.md)."""
-    return (2 * StoredReservoirs.bytes_per_row(kept=True) + _GBUFFER_BYTES + _FLAG_BYTES
+def state_bytes_per_pixel(accumulating=True, pixels=NARROW_MIN_PIXELS):
+    """Bytes per pixel of what a frame of ``pixels`` pixels keeps for the
+    next (FrameHistory): the temporal and spatial reservoirs (narrowed from
+    NARROW_MIN_PIXELS on: reservoir_store.py), the G-buffer history, two
+    flags and, when frames are accumulated, the running means
+    (docs/memory.md)."""
+    return (2 * bytes_per_row(pixels, kept=True) + _GBUFFER_BYTES + _FLAG_BYTES
             + (COLUMNS * 4 if accumulating else 0))
 
 
