@@ -257,8 +257,8 @@ def fmt(v, spec, suffix=""):
 
 
 def table(results, args):
-    lines = [f"Corpus at 320x180 (files' settings: Cycles 12/4/4 bounces, no clamping, ReSTIR "
-             f"max_bounces 4), frame N = {args.frames}, reference Cycles {args.ref_spp} spp. "
+    lines = [f"Corpus at 320x180 (files' settings: 12/4/4/12 bounces in both engines, no clamping "
+             f"in Cycles), frame N = {args.frames}, reference Cycles {args.ref_spp} spp. "
              f"ms per frame: median of frames 2..N (PT: {PT_FRAMES} frames, Cycles: "
              f"{CYCLES_FRAMES} frames, camera held at frame N; reference: its single frame). "
              f"Reference row's MSE: its own estimated noise.", "",
