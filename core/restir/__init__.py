@@ -17,6 +17,7 @@ import numpy as np
 from .. import materials, samplers
 from ..camera import PixelFilter
 from ..parallel import release_free_memory
+from ..reservoir_store import NARROW_MIN_PIXELS
 from ..reservoirs import finalize, merge
 from ..rows import gather, scale, scatter
 from ..sampling import luminance
@@ -34,8 +35,9 @@ from .validation import validate
 BIASED = "RESTIR_BIASED"
 # Below this many pixels a frame's freed temporaries are left in the heaps:
 # giving them back makes the next frame fault their pages in again (about
-# 7 % of a 320x180 frame), and they are small (docs/plan.md, issue 12).
-TRIM_MIN_PIXELS = 1 << 20
+# 7 % of a 320x180 frame), and they are small (docs/plan.md, issue 12). The
+# same size at which the reservoirs start to be stored narrowed.
+TRIM_MIN_PIXELS = NARROW_MIN_PIXELS
 MOVING_CAP = 4      # frames of accumulated history kept in a frame where objects moved
 UNBIASED = "RESTIR_UNBIASED"
 
