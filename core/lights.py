@@ -19,7 +19,6 @@ ignores visibility: a closed room under a bright sky spends samples on it.
 Emission colour x strength and world colour x strength are radiances.
 """
 
-import copy
 from dataclasses import dataclass
 
 import numpy as np
@@ -54,8 +53,7 @@ class LightSet:
 
     ``environment`` is the scene's world (core/environment.py; None when black),
     whose radiance every ray that escapes reads; ``world_pmf`` its selection
-    probability (0 in ``without_world()``, a view for callers that reach the
-    world by other means)."""
+    probability (0 for a constant world, which only BSDF rays find)."""
 
     def __init__(self, scene, emission_two_sided=True):
         self.analytic = AnalyticLights(scene.lights)
@@ -104,13 +102,19 @@ class LightSet:
                            kind == LIGHT_AREA], [_SPHERE, _SUN, _AREA], _NONE)
         weights = [self.analytic.selection_weights(self.scene_radius), w_tri]
         groups = [group, np.full(len(self.tri_index), _TRI)]
-        if self.environment is not None:
+        # A constant world is no light for NEE, as in Cycles (which disables
+        # the background light when the world shader does not vary with
+        # direction): sampling it about the normal is the diffuse lobe's own
+        # cosine sampling again, and each pick of it takes a shadow ray from
+        # the lamps (a sun beside a sky-blue world was picked 40 % of the
+        # time, doubling the noise of sunlit surfaces). BSDF rays that escape
+        # take its whole radiance.
+        if self.environment is not None and self.environment.constant is None:
             weights.append([self.world_weight(self.environment, self.scene_radius)])
             groups.append([_ENV])
         self._weights = np.concatenate(weights).astype(np.float64)
         self._groups = np.concatenate(groups).astype(np.int8)
         self._set_distribution(self._weights, self._groups)
-        self._no_world = None
 
     @staticmethod
     def world_weight(env, scene_radius):
@@ -130,19 +134,6 @@ class LightSet:
         world = np.nonzero(groups == _ENV)[0]
         self.world_index = int(world[0]) if len(world) else -1
         self.world_pmf = float(self.distribution.pmf[self.world_index]) if len(world) and self.count else 0.0
-
-    def without_world(self):
-        """This set with the world left out of the selection (its radiance
-        still there for escaping rays): a view sharing every array."""
-        if self.world_index < 0:
-            return self
-        if self._no_world is None:
-            other = copy.copy(self)
-            keep = self._groups != _ENV
-            other._set_distribution(self._weights[keep], self._groups[keep])
-            other._no_world = other
-            self._no_world = other
-        return self._no_world
 
     @property
     def lights(self):

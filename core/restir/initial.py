@@ -17,8 +17,8 @@ NEE_REFERENCE_PDF (a cosine-weighted ray's density along the normal). Bright,
 small regions (a sun in an HDRI) go to NEE, the broad sky to the reservoirs,
 and any such partition of unity keeps both estimates unbiased. The glossy
 lobe is not reused, so its share is plain MIS between NEE and the sample ray.
-A constant world is left out of x1's NEE altogether (``visible_point_lights``):
-it has no bright directions to find, and its light reaches the reservoirs whole.
+A constant world is no NEE light at all (core/lights.py, as in Cycles): it has
+no bright directions to find, and its light reaches the reservoirs whole.
 
 Reservoirs carry light for the diffuse lobe only (their target is
 luminance(Lo) x cos, the shape of a Lambert lobe): a neighbour's sample reused
@@ -27,7 +27,6 @@ sparkle on metals that no number of frames averaged away. The glossy lobe's
 indirect light is this sample's own path-traced estimate, returned apart.
 """
 
-import dataclasses
 
 import numpy as np
 
@@ -48,18 +47,9 @@ UNIFORM = "UNIFORM"
 NEE_REFERENCE_PDF = INV_PI  # world_share: directions NEE samples more densely than this go to NEE
 
 
-def visible_point_lights(lights):
-    """The LightSet the visible points' NEE samples: all emitters, but a
-    constant world only through the sky samples."""
-    env = lights.environment
-    if env is not None and env.constant is not None:
-        return lights.without_world()
-    return lights
-
-
 def world_share(lights, d):
     """(N,) share of the world's light from directions d that the visible
-    points' NEE carries for the diffuse lobe (lights: visible_point_lights);
+    points' NEE carries for the diffuse lobe;
     the sky samples carry the rest. Depends on the direction only."""
     if lights.world_pmf <= 0:
         return np.zeros(len(d), np.float32)
@@ -69,7 +59,7 @@ def world_share(lights, d):
 
 def world_sample_radiance(lights, d):
     """(N, 3) radiance of sky samples in directions d: the world's, less the
-    share the visible points' NEE takes (lights: visible_point_lights)."""
+    share the visible points' NEE takes."""
     return scale(lights.world_radiance(d), 1.0 - world_share(lights, d)).astype(np.float32)
 
 
@@ -170,10 +160,9 @@ def initial_samples(ctx, gb, seed, frame, sample, max_bounces, sampling=COSINE, 
     # Direct light: NEE weighted against this very sampler, with light_samples
     # per point spread evenly over light choice and light surfaces (stratified),
     # all in one batch ...
-    lights = visible_point_lights(ctx.lights)
-    ctx1 = ctx if lights is ctx.lights else dataclasses.replace(ctx, lights=lights)
+    lights = ctx.lights
     counts = np.broadcast_to(np.maximum(np.asarray(light_samples, np.int64), 1), (len(index),))
-    d = direct_light(ctx1, surf, frame_sh, seeds, 0, mis=True,
+    d = direct_light(ctx, surf, frame_sh, seeds, 0, mis=True,
                      strategy_pdf=lambda w_l: _source_pdf(params, wo_l, w_l, sampling),
                      weigh=_world_split(lights, params))
     extra = counts - 1
@@ -188,7 +177,7 @@ def initial_samples(ctx, gb, seed, frame, sample, max_bounces, sampling=COSINE, 
         u_light = samplers.stratified_light_uniforms(k, counts[rep], s_sel, s_uv)
         surf_k, frame_k = surf.subset(rep), frame_sh.subset(rep)
         params_k, wo_k = frame_k.params, frame_k.wo_local
-        more = direct_light(ctx1, surf_k, frame_k, seeds[rep], 0, mis=True, u_light=u_light,
+        more = direct_light(ctx, surf_k, frame_k, seeds[rep], 0, mis=True, u_light=u_light,
                             strategy_pdf=lambda w_l: _source_pdf(params_k, wo_k, w_l, sampling),
                             weigh=_world_split(lights, params_k))
         for c in range(3):

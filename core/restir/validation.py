@@ -16,7 +16,7 @@ from ..integrators.path import radiance_from_surface
 from ..interaction import SurfaceHits
 from ..parallel import concat_rows
 from ..sampling import luminance
-from .initial import visible_point_lights, world_sample_radiance
+from .initial import world_sample_radiance
 
 CHANGE_THRESHOLD = 0.25     # relative change of luminance that invalidates a sample
 
@@ -32,7 +32,7 @@ def validate(ctx, res, max_bounces, threshold=CHANGE_THRESHOLD):
         sky = np.nonzero((r.prim2 == r.WORLD_SAMPLE) & (r.M > 0))[0]
         if len(sky):
             old = luminance(r.field("lo", sky))
-            new = luminance(world_sample_radiance(visible_point_lights(ctx.lights), -r.field("wo2", sky)))
+            new = luminance(world_sample_radiance(ctx.lights, -r.field("wo2", sky)))
             changed_sky = sky[_changed(old, new, threshold)]
             r.drop(changed_sky)
             dropped += len(changed_sky)
