@@ -137,7 +137,7 @@ def test04_running_mean_and_its_cap():
     lost = accumulate(acc, Footprint.none(n), values[0], values[0], values[0], values[0], cap=4)
     assert np.allclose(lost.direct, 1.0) and np.allclose(lost.count, 1)
     # Half a pixel over: the mean of two pixels' histories.
-    acc.direct[:] = np.arange(n, dtype=np.float32)[:, None]
+    acc.data[:, 0:3] = np.arange(n, dtype=np.float32)[:, None]     # (direct is light + seen: a sum)
     half = Footprint.none(n)
     half.taps[:, 0], half.taps[:, 1] = np.arange(n), np.minimum(np.arange(n) + 1, n - 1)
     half.weights[:, :2] = 0.5

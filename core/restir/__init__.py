@@ -29,6 +29,7 @@ from .initial import COSINE, initial_samples
 from .shading import carried_visibility, shade_indirect
 from .shift import target_at
 from .spatial import reuse_weights, spatial_resample
+from .silhouettes import refine_edges
 from .temporal import FrameHistory, ObjectMotion, carry_with_objects, reproject, temporal_resample
 from .validation import validate
 
@@ -66,6 +67,8 @@ class ReSTIRSettings:
     still_temporal_M_cap: float = 4.0   # temporal cap of a still's frames after it settles
                                         # (core/render.py): less correlated frames, so
                                         # their mean converges faster (docs/plan.md)
+    edge_samples: int = 32          # camera rays for the radiance seen directly at bright
+                                    # silhouettes (silhouettes.py; 1 turns it off)
     accumulate: int = 16            # frames in each pixel's running mean (accumulation.py);
                                     # 1 turns it off, accumulation.STILL averages every frame
 
@@ -225,7 +228,7 @@ class ReSTIRGI:
             diffuse = scatter(np.zeros((b - a, 3), np.float32), part.index, part.frame.params.diffuse)
             spent("temporal", t)
             return FirstPass(part.valid, part.depth, part.object_id, part.p, part.n, part.ng, part.albedo,
-                             part.emission + direct, luminance(direct).astype(np.float32), glossy, diffuse,
+                             direct, luminance(direct).astype(np.float32), part.emission, glossy, diffuse,
                              alpha, keep, prev.astype(np.int32), hold, temporal)
 
         # The first pass's colours and factors go into the columns of the
@@ -235,6 +238,10 @@ class ReSTIRGI:
         shaded = np.empty((n, COLUMNS), np.float32)
         one = ctx.workers.map_into(new_samples, n, out=FirstPass.allocate(n, shaded, history is not None))
         prev_pix, temporal = one.prev_pix, one.temporal
+        t = time.perf_counter()
+        refined = refine_edges(ctx, settings.seed, frame, pixel_filter, one.seen, one.lum_direct,
+                                settings.edge_samples)
+        spent("gbuffer", t)
         img = FrameImage(one.valid, one.depth, one.object_id, one.p, one.n, one.ng, gb_width, gb_height)
         ctx.accel.poll()    # the resampling passes trace no rays until shading
         if biased:      # the filter trades a little energy for stability: not in the unbiased mode
@@ -295,21 +302,22 @@ class ReSTIRGI:
                 # to 1.5 % and the mean closer to the reference (bench/fig1.py's MSE
                 # is unchanged).
                 spatial.clear(visibility < 0)
-            direct_total = one.direct[a:b]
+            direct_total, seen = one.direct[a:b], one.seen[a:b]
             indirect += one.glossy[a:b]     # the glossy lobe's light, from this frame's own samples
             keep = one.keep[a:b].copy()
             if (keep < 1).any():    # Holdout: the pixel's share cut out, colour and all
-                direct_total, indirect = scale(direct_total, keep), scale(indirect, keep)
-            for x in (direct_total, indirect):
+                direct_total, indirect, seen = scale(direct_total, keep), scale(indirect, keep), scale(seen, keep)
+            for x in (direct_total, indirect, seen):
                 np.nan_to_num(x, copy=False, nan=0.0, posinf=0.0, neginf=0.0)
             footprint = None
             if prev_acc is not None:
                 footprint = previous_pixels(scene, part, history, motion, still_scene=not moved)
             # (without accumulation: this frame's values, as a mean of one frame)
             rows = accumulate(prev_acc, footprint, direct_total, indirect, one.albedo[a:b], img.n[a:b],
-                              settings.accumulate, one.alpha[a:b]).data
+                              settings.accumulate, one.alpha[a:b], seen,
+                              None if refined is None else refined.rows(a, b)).data
             shaded[a:b] = rows
-            color = rows[:, 0:3] + rows[:, 3:6]
+            color = rows[:, 0:3] + rows[:, 3:6] + rows[:, 14:17]
             spent("shading", t)
             return (None if not settings.spatial else spatial), visibility, color
 

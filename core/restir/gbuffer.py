@@ -82,8 +82,9 @@ class FirstPass:
     n: np.ndarray           # (P, 3) shading normals
     ng: np.ndarray          # (P, 3) geometric normals
     albedo: np.ndarray      # (P, 3)
-    direct: np.ndarray      # (P, 3) emission seen directly + direct light
-    lum_direct: np.ndarray  # (P,) luminance of the direct light alone (adaptive_direct.py)
+    direct: np.ndarray      # (P, 3) direct light of the visible points
+    lum_direct: np.ndarray  # (P,) its luminance (adaptive_direct.py)
+    seen: np.ndarray        # (P, 3) radiance seen directly: emitters, visible lamps, world
     glossy: np.ndarray      # (P, 3) the glossy lobe's indirect light
     diffuse: np.ndarray     # (P, 3) diffuse reflectance of the visible points
     alpha: np.ndarray       # (P,) this frame's coverage (materials.camera_alpha)
@@ -95,12 +96,13 @@ class FirstPass:
     @staticmethod
     def allocate(n, shaded, with_hold):
         """Whole-image arrays for n pixels, the colours and factors in the
-        columns of ``shaded`` (P, 14): direct 0:3, glossy 3:6 and albedo 6:9
-        where the running means (accumulation.py) will have them, diffuse
-        9:12, keep 12 and alpha 13."""
+        columns of ``shaded`` (P, COLUMNS): direct 0:3, glossy 3:6, albedo
+        6:9 and seen 14:17 where the running means (accumulation.py) will
+        have them, diffuse 9:12, keep 12 and alpha 13."""
         vec = lambda: np.empty((n, 3), np.float32)  # noqa: E731
         return FirstPass(np.empty(n, bool), np.empty(n, np.float32), np.empty(n, np.int32), vec(), vec(),
-                         vec(), shaded[:, 6:9], shaded[:, 0:3], np.empty(n, np.float32), shaded[:, 3:6],
+                         vec(), shaded[:, 6:9], shaded[:, 0:3], np.empty(n, np.float32),
+                         shaded[:, 14:17], shaded[:, 3:6],
                          shaded[:, 9:12], shaded[:, 13], shaded[:, 12], np.empty(n, np.int32),
                          np.empty(n, np.int8) if with_hold else None, Reservoirs.empty(0).whole_image(n))
 
@@ -158,23 +160,43 @@ def trace_gbuffer(ctx, seed, frame, pixel_filter, jitter=True):
     return joined
 
 
+CAMERA_SAMPLE = 0xC0FFEE      # the sample number of the G-buffer's camera rays (path_seeds)
+
+
+def camera_rays(scene, pixel_filter, pix, seeds):
+    """Camera rays (o, d, tmax) through pixels pix (N,), jittered by the
+    pixel filter with each seed's camera dimensions (centres if seeds is None)."""
+    w, h = scene.width, scene.height
+    xy = np.stack([pix % w, pix // w], axis=1).astype(np.float32) + 0.5
+    if seeds is not None:
+        xy += pixel_filter.offsets(samplers.uniform2(seeds, samplers.DIM_CAMERA))
+    return generate_rays(scene.camera, w, h, xy)
+
+
+def seen_directly(ctx, o, d, tmax, hits, surf, idx):
+    """(N, 3) radiance camera rays see directly: camera-visible lights, the
+    world where they miss (unless the film is transparent) and the emission
+    of the surfaces hit (surf: surface_hits of the rows idx)."""
+    emission = ctx.lights.emitted_along(o, d, np.minimum(hits.t, tmax))
+    miss = np.nonzero(~hits.hit)[0]
+    if len(miss) and ctx.lights.environment is not None and not ctx.scene.film_transparent:
+        scatter_add(emission, miss, ctx.lights.world_radiance(gather(d, miss)))
+    if len(idx) and len(ctx.lights.tri_index):
+        scatter_add(emission, idx, ctx.lights.triangle_emission(surf.prim, surf.front))
+    return emission
+
+
 def trace_rows(ctx, seed, frame, pixel_filter, jitter, start, stop):
     """The GBuffer of pixels [start, stop) (offset start)."""
     scene = ctx.scene
     w, h = scene.width, scene.height
     n = stop - start
     pix = np.arange(start, stop, dtype=np.int64)
-    xy = np.stack([pix % w, pix // w], axis=1).astype(np.float32) + 0.5
-    if jitter:
-        seeds = samplers.path_seeds(seed, frame, pix, 0xC0FFEE)
-        xy += pixel_filter.offsets(samplers.uniform2(seeds, samplers.DIM_CAMERA))
-    o, d, tmax = generate_rays(scene.camera, w, h, xy)
+    o, d, tmax = camera_rays(scene, pixel_filter, pix, samplers.path_seeds(seed, frame, pix, CAMERA_SAMPLE)
+                             if jitter else None)
     hits = ctx.accel.intersect_closest(o, d, tmax, camera=True)
-    emission = ctx.lights.emitted_along(o, d, np.minimum(hits.t, tmax))
-    miss = np.nonzero(~hits.hit)[0]
-    if len(miss) and ctx.lights.environment is not None and not scene.film_transparent:
-        scatter_add(emission, miss, ctx.lights.world_radiance(gather(d, miss)))
     surf, idx = surface_hits(scene, o, d, hits)
+    emission = seen_directly(ctx, o, d, tmax, hits, surf, idx)
     valid = np.zeros(n, bool)
     valid[idx] = True
     depth = np.full(n, 1e10, np.float32)
@@ -182,8 +204,6 @@ def trace_rows(ctx, seed, frame, pixel_filter, jitter, start, stop):
     albedo = np.zeros((n, 3), np.float32)
     frame_sh = ShadingFrame.at(scene, surf)
     if len(idx):
-        if len(ctx.lights.tri_index):
-            emission[idx] += ctx.lights.triangle_emission(surf.prim, surf.front)
         depth[idx] = view_depth(scene.camera, surf.p)
         object_id[idx] = np.take(scene.object_ids, surf.prim)
         scatter(albedo, idx, np.clip(frame_sh.params.diffuse + frame_sh.params.f0, 0.0, 1.0))
