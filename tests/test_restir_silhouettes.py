@@ -61,7 +61,9 @@ def test01_neighbour_extremes():
 def test02_edges_surround_bright_silhouettes():
     """A bright square on a dark image: the pixels with both kinds of
     neighbour are edges (the square's border and the ring around it), the
-    flat parts are not; a noisy image gets at most MAX_EDGE_SHARE."""
+    flat parts are not; the edge of a sky that covers much of the image is
+    mild against the image's mean; a noisy image gets at most
+    MAX_EDGE_SHARE."""
     w = h = 16
     img = np.zeros((h, w), np.float32)
     img[5:10, 6:12] = 50.0
@@ -71,6 +73,9 @@ def test02_edges_surround_bright_silhouettes():
     mask[6:9, 7:11] = False         # the square's inside: all neighbours bright
     assert (np.flatnonzero(mask.ravel()) == edges).all()
     assert bright.all()             # 50 against a mean of 5.9
+    sky = np.where(np.arange(h)[:, None] < 6, 2.0, 0.0) + np.zeros(w, np.float32)
+    edges, bright = edge_pixels(sky.ravel(), np.full(w * h, 0.5), w, h)
+    assert len(edges) == 2 * w and not bright.any()     # a sky over lit walls: an edge, mild
     noise = np.random.default_rng(2).exponential(1.0, w * h).astype(np.float32) ** 3
     edges, _ = edge_pixels(noise, np.zeros(w * h), w, h)
     assert 0 < len(edges) <= int(MAX_EDGE_SHARE * w * h)

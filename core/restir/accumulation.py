@@ -249,18 +249,16 @@ def accumulate(prev, footprint, direct, indirect, albedo, normal, cap, alpha=1.0
     prev: last frame's Accumulation (whole image) or None.
 
     refined: silhouettes.RefinedSeen of the part's rows, or None. The
-    radiance seen directly (seen) of its ``own`` pixels (the bright
-    silhouettes, which take several camera rays) keeps a history only where
-    the footprint is exact (a still view); elsewhere it is this frame's. A history read between pixels mixes
-    a small bright emitter with what lies beside it: on the corpus's room of
-    small emitters, with a moving camera, the emitters' pixels came out
-    5-7 % dark and held most of the error. Where the contrast is mild (the
-    sky's edge over a sunlit wall) the history is kept: the light of the
-    pixel's visible point still comes from one camera ray, so the radiance
-    seen directly is best kept with it. Off a still view, the history of
-    the radiance seen directly is also held under ``refined.ceiling``: a
-    refined pixel holds part of an emitter under another object's id, which
-    the trail test of previous_pixels cannot see."""
+    radiance seen directly (seen) of its ``own`` pixels (the brightest
+    silhouettes, which take several camera rays) keeps a history only where the
+    footprint is exact (a still view); elsewhere it is this frame's: a
+    history read between pixels mixes a small bright emitter with what lies
+    beside it, and on the corpus's room of small emitters, with a moving
+    camera, the emitters' pixels came out 5-7 % dark and held most of the
+    error. Off a still view the history of the other pixels' radiance seen
+    directly is held under ``refined.ceiling``: a refined pixel holds part
+    of an emitter under another object's id, which the trail test of
+    previous_pixels cannot see."""
     n = len(direct)
     new = np.empty((n, COLUMNS), np.float32)
     new[:, 0:3], new[:, 3:6], new[:, 6:9], new[:, 9:12], new[:, 12] = direct, indirect, albedo, normal, 1.0
