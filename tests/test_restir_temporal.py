@@ -185,11 +185,12 @@ def test04_moving_object_finds_its_history():
     assert result.history_found == pytest.approx((prev[gb1.valid] >= 0).mean())
 
 
-def test04b_samples_and_owners_ride_with_the_moved_object():
+def test04b_samples_and_their_owners_ride_with_the_moved_object():
     """Stored sample points on the card (the wall's light bounced off its
-    back), and the visible points on it that own reservoirs, move with the
-    card (here 1 along x); everything else stays; without object transforms
-    nothing moves."""
+    back) move with the card (here 1 along x), and so do the points they
+    were drawn from (history.owners), whatever object those lie on; samples
+    elsewhere keep theirs, also on the card's own pixels; the G-buffer
+    history stays; without object transforms nothing moves."""
     from core.restir.temporal import carry_with_objects
     s0 = card_scene(-0.5, motion=True)
     ctx0 = RenderContext.build(s0)
@@ -203,17 +204,21 @@ def test04b_samples_and_owners_ride_with_the_moved_object():
     before = [(r.x2.copy(), r.n2.copy(), r.prim2.copy()) for r in (h.temporal, h.spatial)]
     p_before = h.p.copy()
     assert carry_with_objects(card_scene(-0.5, motion=False), h) == 0      # no transforms: no motion
+    assert h.owners() is h.p and h.owners(spatial=True) is h.p
     moved = carry_with_objects(card_scene(0.5, motion=True), h)
     assert moved > 0
-    for r, (x2, n2, prim2) in zip((h.temporal, h.spatial), before):
+    card_px = h.object_id == 1
+    for k, (r, (x2, n2, prim2)) in enumerate(zip((h.temporal, h.spatial), before)):
         on_card = (prim2 >= 2)                      # triangles 2 and 3 are the card's
         assert on_card.sum() >= 10
         assert np.allclose(r.x2[on_card] - x2[on_card], [1.0, 0, 0], atol=1e-5)
         assert np.array_equal(r.x2[~on_card], x2[~on_card])
         assert np.allclose(r.n2, n2, atol=1e-6)     # a translation turns no normal
-    card_px = h.object_id == 1
-    assert np.allclose(h.p[card_px] - p_before[card_px], [1.0, 0, 0], atol=1e-5)
-    assert np.array_equal(h.p[~card_px], p_before[~card_px])
+        owners = h.owners(spatial=bool(k))
+        assert np.allclose(owners[on_card] - p_before[on_card], [1.0, 0, 0], atol=1e-5)
+        assert np.array_equal(owners[~on_card], p_before[~on_card])
+        assert (card_px & ~on_card).sum() >= 10     # the card's own pixels, samples on the wall
+    assert np.array_equal(h.p, p_before)
 
 
 # --- (3) resolution change ------------------------------------------------------------

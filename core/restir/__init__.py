@@ -21,7 +21,7 @@ from ..reservoir_store import NARROW_MIN_PIXELS
 from ..reservoirs import finalize, merge
 from ..rows import gather, scale, scatter
 from ..sampling import luminance
-from .accumulation import COLUMNS, Accumulation, accumulate, previous_pixels, restart
+from .accumulation import COLUMNS, Accumulation, accumulate, light_range, previous_pixels, restart
 from .adaptive_direct import light_sample_counts, reprojected_hold, update_noise_hold
 from .boiling import boiling_filter
 from .gbuffer import FirstPass, FrameImage, trace_rows
@@ -40,6 +40,9 @@ BIASED = "RESTIR_BIASED"
 # same size at which the reservoirs start to be stored narrowed.
 TRIM_MIN_PIXELS = NARROW_MIN_PIXELS
 MOVING_CAP = 4      # frames of accumulated history kept in a frame where objects moved
+MOVING_M_CAP = 4.0  # M cap of the reservoirs of pixels on objects that moved: a moving
+                    # object's light changes as it moves, and with the usual caps its
+                    # reservoirs lagged (tests/test_restir_moving_objects.py)
 UNBIASED = "RESTIR_UNBIASED"
 
 
@@ -201,6 +204,13 @@ class ReSTIRGI:
         # go straight into whole-image arrays (Workers.map_into), and its
         # G-buffer hits and shading frames live only while the range runs:
         # the second pass needs of them what the whole-image arrays hold.
+        def moving_cap(object_id, cap):
+            """The M cap of pixels with these object ids (-1: none): lower on moved objects."""
+            if motion is None:
+                return cap
+            on = np.where(object_id >= 0, motion.moved_now[np.maximum(object_id, 0)], False)
+            return np.where(on, min(cap, MOVING_M_CAP), cap).astype(np.float32)
+
         def new_samples(a, b):
             t = time.perf_counter()
             part = trace_rows(ctx, settings.seed, frame, pixel_filter, True, a, b)
@@ -222,7 +232,8 @@ class ReSTIRGI:
             finalize(initial, target_at(initial, part.p, part.ng, part.n))
             t = spent("initial", t)
             temporal = temporal_resample(initial, part, history, prev, samplers.uniform(seeds[a:b], 5),
-                                         settings.temporal_M_cap, settings.max_age, biased)
+                                         moving_cap(part.object_id, settings.temporal_M_cap),
+                                         settings.max_age, biased)
             del initial
             alpha, keep = materials.camera_alpha(scene, b - a, part.index, part.surf)
             diffuse = scatter(np.zeros((b - a, 3), np.float32), part.index, part.frame.params.diffuse)
@@ -243,6 +254,7 @@ class ReSTIRGI:
                                 settings.edge_samples)
         spent("gbuffer", t)
         img = FrameImage(one.valid, one.depth, one.object_id, one.p, one.n, one.ng, gb_width, gb_height)
+        gate = light_range(one.lum_direct, one.valid, gb_width, gb_height) if moved else None
         ctx.accel.poll()    # the resampling passes trace no rays until shading
         if biased:      # the filter trades a little energy for stability: not in the unbiased mode
             boiling_filter(temporal, img.width, img.height, settings.boiling_filter)
@@ -282,10 +294,11 @@ class ReSTIRGI:
                     found = prev_pix[a:b] >= 0
                     q = np.maximum(prev_pix[a:b], 0)
                     prev_spatial = history.spatial.take(q)
-                    prev_spatial.M = np.where(found, np.minimum(prev_spatial.M, cap), 0.0).astype(np.float32)
+                    prev_spatial.M = np.where(found, np.minimum(prev_spatial.M, moving_cap(img.object_id[a:b], cap)),
+                                              0.0).astype(np.float32)
                     prev_spatial.age += 1
                     prev_spatial.M[prev_spatial.age > settings.max_age] = 0
-                    prev_owner = gather(history.p, q)
+                    prev_owner = gather(history.owners(spatial=True), q)
                 spatial, visible_own, from_prev = spatial_resample(
                     ctx, img, temporal, prev_spatial, prev_owner, seeds, settings.spatial_neighbors,
                     settings.spatial_radius, biased, rows=(a, b), lum_wm=lum_wm)
@@ -315,7 +328,8 @@ class ReSTIRGI:
             # (without accumulation: this frame's values, as a mean of one frame)
             rows = accumulate(prev_acc, footprint, direct_total, indirect, one.albedo[a:b], img.n[a:b],
                               settings.accumulate, one.alpha[a:b], seen,
-                              None if refined is None else refined.rows(a, b)).data
+                              None if refined is None else refined.rows(a, b),
+                              None if gate is None else (gate[0][a:b], gate[1][a:b], gate[2])).data
             shaded[a:b] = rows
             color = rows[:, 0:3] + rows[:, 3:6] + rows[:, 14:17]
             spent("shading", t)

@@ -27,12 +27,18 @@ import numpy as np
 from ..camera import generate_rays, project
 from ..rows import gather
 from ..sampling import luminance
+from .adaptive_direct import neighbourhood_range
 
 DEPTH_REL_MAX = 0.1
 STILL = 1 << 30             # cap for a still image: the plain mean of every frame
 
 
 COLUMNS = 17        # direct 3, indirect 3, albedo 3, normal 3, count 1, alpha 1, seen 3
+
+# Where objects moved, a pixel starts over when this frame's direct light in
+# its 3x3 neighbourhood agrees within this share and its history lies outside
+# that range by more than this share (accumulate's ``light_range``).
+GATE_RELATIVE = 0.1
 
 
 @dataclass
@@ -243,7 +249,8 @@ def _catmull_rom(t):
             0.5 * (t3 - t2))
 
 
-def accumulate(prev, footprint, direct, indirect, albedo, normal, cap, alpha=1.0, seen=0.0, refined=None):
+def accumulate(prev, footprint, direct, indirect, albedo, normal, cap, alpha=1.0, seen=0.0, refined=None,
+               light_range=None):
     """This frame's Accumulation: the history over ``footprint`` (rows of the
     part) blended with this frame's values, over at most ``cap`` frames.
     prev: last frame's Accumulation (whole image) or None.
@@ -258,7 +265,20 @@ def accumulate(prev, footprint, direct, indirect, albedo, normal, cap, alpha=1.0
     error. Off a still view the history of the other pixels' radiance seen
     directly is held under ``refined.ceiling``: a refined pixel holds part
     of an emitter under another object's id, which the trail test of
-    previous_pixels cannot see."""
+    previous_pixels cannot see.
+
+    light_range: (lo, hi, floor) of this frame's direct light's luminance
+    in each pixel's 3x3 neighbourhood (light_range below; lo, hi (N,)), given
+    when objects moved. Pixels whose neighbourhood agrees (spans under GATE_RELATIVE of
+    its top) and whose history lies away from it start over. A moving
+    object's shadow changes the light of surfaces that stay put, whose
+    history the footprint keeps: with MOVING_CAP frames of it, the floor
+    under the quick-start example's sliding box stayed lit where its shadow
+    had arrived. A test of each pixel against its own history's spread
+    instead left stripes (neighbours whose histories were already mixed kept
+    them), and clipping every history to the neighbourhood's range darkens
+    noisy direct light (many lights: the range of nine one-sample pixels
+    often lies below their mean); a neighbourhood that agrees is neither."""
     n = len(direct)
     new = np.empty((n, COLUMNS), np.float32)
     new[:, 0:3], new[:, 3:6], new[:, 6:9], new[:, 9:12], new[:, 12] = direct, indirect, albedo, normal, 1.0
@@ -288,12 +308,34 @@ def accumulate(prev, footprint, direct, indirect, albedo, normal, cap, alpha=1.0
         if over.any():
             h_seen[over] *= (refined.ceiling[over] / np.maximum(luminance(h_seen[over]), 1e-30))[:, None]
         h_seen[refined.own] = new[refined.own, 14:17]
+    if light_range is not None:
+        lo, hi, floor = light_range
+        m = np.maximum(luminance(hist[:, 0:3]), floor)
+        away = (hi - lo <= GATE_RELATIVE * hi) & ((m - hi > GATE_RELATIVE * m) | (lo - m > GATE_RELATIVE * lo))
+        hist[away] = new[away]
+        hist[away, 12] = 0.0
     count = np.minimum(hist[:, 12], cap - 1) + 1
     hist -= new
     hist *= (1.0 - 1.0 / count)[:, None]        # = old + (new - old) / count
     hist += new
     hist[:, 12] = count
     return Accumulation(hist)
+
+
+def light_range(lum_direct, valid, width, height):
+    """(lo, hi, floor): lo, hi (P,) of the direct light's luminance
+    lum_direct (P,) over each pixel's 3x3 neighbourhood (valid pixels only),
+    for accumulate. Both are at least ``floor``, the image's faintest light
+    worth telling apart (1e-3 of its mean; the floor where no neighbour is
+    valid), so a dark neighbourhood agrees with itself and with a dark
+    history."""
+    hi, lo = neighbourhood_range(lum_direct, valid, width, height)
+    floor = np.float32(1e-3 * float(lum_direct[valid].mean())) if valid.any() else np.float32(0)
+    none = ~np.isfinite(lo)
+    hi = np.maximum(hi, floor)
+    lo = np.maximum(lo, floor)
+    hi[none] = lo[none] = floor
+    return lo.astype(np.float32), hi.astype(np.float32), floor
 
 
 def restart(acc, cap=0):

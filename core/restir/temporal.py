@@ -42,6 +42,16 @@ class FrameHistory:
     noise_hold: np.ndarray = None   # (P,) int8 frames left of "direct light noisy" (adaptive_direct)
     visibility: np.ndarray = None   # (P,) int8 spatial samples' visibility states (shading.py)
     accumulation: object = None     # running means of the shaded frames (accumulation.py)
+    # Where each reservoir's sample was drawn from, as carried by
+    # carry_with_objects (None: the visible points p).
+    temporal_owner: np.ndarray = None
+    spatial_owner: np.ndarray = None
+
+    def owners(self, spatial=False):
+        """(P, 3) the points each pixel's temporal (or spatial) reservoir's
+        sample reconnects from, for the shift's Jacobian."""
+        o = self.spatial_owner if spatial else self.temporal_owner
+        return self.p if o is None else o
 
 
 # Per pixel of the G-buffer history: p, n, ng (3 x float32 x 3), depth
@@ -120,25 +130,31 @@ def _move_rows(m, rows, points=(), directions=(), normals=()):
 
 
 def carry_with_objects(scene, history):
-    """Move last frame's state with the objects that moved since: the visible
-    points owning the reservoirs, and the sample points (with their normals
-    and directions) lying on moved objects, so reuse reconnects to where
-    those surfaces are now. In place; a no-op when nothing moved."""
+    """Move last frame's state with the objects that moved since: the sample
+    points (with their normals and directions) lying on moved objects, so
+    reuse reconnects to where those surfaces are now, and with each of them
+    the point it was drawn from (history.owners), so the shift's Jacobian
+    sees the geometry the sample was drawn in, carried rigidly. A sample on
+    a static surface keeps its owner where it was, whether or not the owner's
+    own object moved: the Jacobian of the shift from there to this frame's
+    visible point is the true one. (Moving owners with their own objects
+    made every sample of a moving box look as if drawn from where the box is
+    now: the quick-start example's sliding box, lit by the sunlit floor in
+    front of it, got a sixth of its indirect light.) In place; returns the
+    number of samples moved."""
     moved = _object_motions(scene, history)
     if not moved or scene.triangle_count == 0:
         return 0
-    history.p = history.p.copy()        # last frame's G-buffer array: not ours to change
     sets = [history.temporal]
     if history.spatial is not history.temporal \
             and not np.shares_memory(history.spatial.x2, history.temporal.x2):
         sets.append(history.spatial)
     count = 0
-    for i, (j, to_prev) in moved.items():
-        to_cur = np.linalg.inv(to_prev)
-        owners = np.nonzero(history.object_id == j)[0]
-        if len(owners):
-            _move_rows(to_cur, owners, points=(history.p,))
-        for res in sets:
+    owners = []
+    for res in sets:
+        owner = history.p.copy()
+        for i, (j, to_prev) in moved.items():
+            to_cur = np.linalg.inv(to_prev)
             on = np.nonzero((res.prim2 >= 0) & (np.take(scene.object_ids, np.maximum(res.prim2, 0)) == i))[0]
             if len(on):
                 moving = res.take(on)
@@ -146,7 +162,11 @@ def carry_with_objects(scene, history):
                 _move_rows(to_cur, every, points=(moving.x2,), directions=(moving.wo2,),
                            normals=(moving.ng2, moving.n2))
                 res.put(on, moving)
+                _move_rows(to_cur, on, points=(owner,))
                 count += len(on)
+        owners.append(owner)
+    history.temporal_owner = owners[0]
+    history.spatial_owner = owners[-1]
     return count
 
 
@@ -192,7 +212,8 @@ def temporal_resample(initial, gb, history, prev_pix, u, M_cap, max_age, biased)
     prev.age += 1
     ok &= prev.age <= max_age
     p, ng, ns = gb.p, gb.ng, gb.n
-    w_prev = np.where(ok, shift_weight(prev, history.p[q], p, ng, ns, biased), 0.0)
+    owner = gather(history.owners(), q)
+    w_prev = np.where(ok, shift_weight(prev, owner, p, ng, ns, biased), 0.0)
     res = prev
     res.w_sum = w_prev.astype(np.float32)
     m_prev = np.where(ok, prev.M, 0.0).astype(np.float32)
@@ -213,7 +234,6 @@ def temporal_resample(initial, gb, history, prev_pix, u, M_cap, max_age, biased)
     # the Cornell box with the default filter, 0.5 % with this test. Visibility
     # is left out: with it Z falls below M where the history is hidden, and the
     # carried W M compounds that frame after frame into fireflies.
-    owner = gather(history.p, q)
     supported = target_at(res, owner, gather(history.ng, q), gather(history.n, q)) > 0
     j = jacobian(owner, p, res.x2, res.ng2)
     supported &= (j >= J_MIN) & (j <= J_MAX)
