@@ -347,14 +347,15 @@ def register_engine():
         module.register()
 
 
-def use_restir(scene, max_bounces=2, warmup_frames=16, mode="RESTIR_BIASED"):
-    """Store ReSTIR GI settings in the scene (default: biased, two-bounce GI,
-    as the animated example renders)."""
+def use_restir(scene, max_bounces=None, warmup_frames=16, mode="RESTIR_BIASED"):
+    """Store ReSTIR GI settings in the scene (default: biased, the engine's
+    bounce limits, which are Cycles', as the animated example renders)."""
     register_engine()
     s = scene.restir_gi
     s.mode = mode
     s.samples = 1
-    s.max_bounces = max_bounces
+    if max_bounces is not None:
+        s.max_bounces = max_bounces
     s.warmup_frames = warmup_frames
 
 

@@ -115,7 +115,7 @@ class RestirGISceneSettings(bpy.types.PropertyGroup):
     max_bounces: IntProperty(
         name="Max Bounces",
         description="Maximum number of bounces of a light path",
-        default=4, min=0, soft_max=16, max=128,
+        default=12, min=0, soft_max=16, max=128,     # Cycles' default
     )
     diffuse_bounces: IntProperty(
         name="Diffuse", default=4, min=0, soft_max=16, max=1024,
