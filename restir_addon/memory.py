@@ -23,15 +23,15 @@ BUDGET_SHARE = 0.6
 
 # Peak memory of a ReSTIR GI animation frame on top of Blender itself, as
 # bytes per pixel plus a fixed part: the state kept between frames
-# (core.restir.temporal.state_bytes_per_pixel, 207 bytes), what a frame holds
+# (core.restir.temporal.state_bytes_per_pixel, 219 bytes), what a frame holds
 # of last frame's while it builds its own, the images handed to Blender; the
 # fixed part is the temporaries of the pixel ranges in flight, which do not
-# grow with the image. bench/bench_memory.py --frames 3 measured 1.69 GB at
-# 1920x1080 and 4.45 GB at 3840x2160: 476 bytes per pixel between the two,
-# and 0.77 GB extrapolated to no pixels, Blender itself included
+# grow with the image. bench/bench_memory.py --frames 3 measured 1.84 GB at
+# 1920x1080 and 4.90 GB at 3840x2160: 528 bytes per pixel between the two,
+# and 0.82 GB extrapolated to no pixels, Blender itself included
 # (docs/memory.md).
-RESTIR_BYTES_PER_PIXEL = 500
-RESTIR_FIXED_BYTES = 512 * 1024 ** 2
+RESTIR_BYTES_PER_PIXEL = 530
+RESTIR_FIXED_BYTES = 768 * 1024 ** 2
 # That figure is a measured peak, not a rough count as BYTES_PER_TRIANGLE is,
 # so the image may take a larger share of the available memory.
 IMAGE_BUDGET_SHARE = 0.85
