@@ -129,7 +129,28 @@ class Footprint:
         return cls(np.zeros((n, 16), np.int64), np.zeros((n, 16), np.float32))
 
 
-def previous_pixels(scene, gb, history, motion=None, still_scene=False):
+def geometric_edges(object_id, depth, valid, width, height):
+    """(P,) bool: pixels whose 3x3 neighbourhood holds more than one surface
+    (another object, a miss beside a hit, or a depth more than
+    DEPTH_REL_MAX away)."""
+    oid = np.where(valid, object_id, -1).reshape(height, width)
+    d = np.where(valid, depth, np.inf).astype(np.float32).reshape(height, width)
+    out = np.zeros((height, width), bool)
+    po = np.pad(oid, 1, mode="edge")
+    pd = np.pad(d, 1, mode="edge")
+    for dy in range(3):
+        for dx in range(3):
+            if dy == 1 and dx == 1:
+                continue
+            o2 = po[dy:dy + height, dx:dx + width]
+            d2 = pd[dy:dy + height, dx:dx + width]
+            out |= o2 != oid
+            with np.errstate(invalid="ignore"):
+                out |= np.abs(d2 - d) > DEPTH_REL_MAX * np.minimum(d, d2)
+    return out.ravel()
+
+
+def previous_pixels(scene, gb, history, motion=None, still_scene=False, edges=None):
     """Footprint of last frame's history of every pixel of the part ``gb``.
 
     motion: temporal.ObjectMotion.between(scene, history) (None: nothing
@@ -138,7 +159,11 @@ def previous_pixels(scene, gb, history, motion=None, still_scene=False):
 
     A moving view reads the history bilinearly at the reprojected centre:
     taking the nearest pixel instead rounds by up to half a pixel every
-    frame, and those errors add up into streaks along the motion."""
+    frame, and those errors add up into streaks along the motion.
+
+    edges ((N,) bool, geometric_edges of this frame): pixels that cover
+    several surfaces read every tap, not only those that saw their own
+    surface: their history is the mix they cover, as on a still view."""
     n = len(gb.valid)
     out = Footprint.none(n)
     if history is None or (history.width, history.height) != (gb.width, gb.height):
@@ -181,10 +206,13 @@ def previous_pixels(scene, gb, history, motion=None, still_scene=False):
     def like(qn):
         """Last frame's sample of pixels qn was this pixel's kind of surface:
         the same object at a similar depth, or for a pixel that sees nothing,
-        nothing (object id -1 on misses)."""
+        nothing (object id -1 on misses). Pixels on geometric edges (edges)
+        take every tap: their history is the mix of the surfaces they cover."""
         obj_prev = np.take(history.object_id, qn)
         same = obj_prev == obj
         same &= np.abs(np.take(history.depth, qn) - depth) <= tolerance
+        if edges is not None:
+            same |= edges
         return same, obj_prev
 
     # Taps of a 4x4 Catmull-Rom window around the reprojected centre, the
