@@ -11,8 +11,8 @@ from core import Camera, Lights, Materials, RenderContext, make_scene
 from core.camera import PixelFilter
 from core.restir.accumulation import COLUMNS, Accumulation, Footprint, accumulate
 from core.restir.gbuffer import trace_gbuffer
-from core.restir.silhouettes import (MAX_EDGE_SHARE, edge_pixels, mean_seen_directly,
-                                     neighbour_extremes, refine_edges)
+from core.restir.adaptive_direct import neighbourhood_range
+from core.restir.silhouettes import MAX_EDGE_SHARE, edge_pixels, mean_seen_directly, refine_edges
 from core.sampling import luminance
 from scenes import Builder, look_at, quad
 
@@ -44,17 +44,18 @@ def z_limit(tests):
     return NormalDist().inv_cdf(1.0 - 0.5 * (1.0 - (1.0 - ALPHA) ** (1.0 / tests)))
 
 
-def test01_neighbour_extremes():
-    """Max and min over the square around each pixel, itself left out."""
+def test01_neighbourhood_without_the_pixel():
+    """Max and min over the 3x3 square around each pixel, itself left out
+    (as edge_pixels reads them), or kept in."""
     rng = np.random.default_rng(1)
     w, h = 7, 5
     img = rng.random((h, w)).astype(np.float32)
-    for radius in (1, 2):
-        mx, mn = neighbour_extremes(img.ravel(), w, h, radius)
+    for centre in (False, True):
+        mx, mn = neighbourhood_range(img.ravel(), None, w, h, centre=centre)
         for y in range(h):
             for x in range(w):
-                win = [img[j, i] for j in range(max(0, y - radius), min(h, y + radius + 1))
-                       for i in range(max(0, x - radius), min(w, x + radius + 1)) if (i, j) != (x, y)]
+                win = [img[j, i] for j in range(max(0, y - 1), min(h, y + 2))
+                       for i in range(max(0, x - 1), min(w, x + 2)) if centre or (i, j) != (x, y)]
                 assert mx[y * w + x] == max(win) and mn[y * w + x] == min(win)
 
 

@@ -25,17 +25,24 @@ NOISE_RELATIVE = 0.3    # neighbours differing by more than this (of the brighte
 HOLD_FRAMES = 8         # frames a flag lasts after its last trigger
 
 
-def neighbourhood_range(values, valid, width, height):
-    """Max and min of ``values`` (P,) over each pixel's 3x3 neighbourhood,
-    counting valid pixels only (invalid pixels get max -inf, min +inf)."""
+def neighbourhood_range(values, valid, width, height, centre=True):
+    """Max and min of ``values`` (P,) over each pixel's 3x3 neighbourhood
+    (without the pixel itself if not ``centre``), counting valid pixels only
+    (valid None: all; where none counts, max -inf and min +inf)."""
     img = values.reshape(height, width)
-    ok = valid.reshape(height, width)
-    hi = np.pad(np.where(ok, img, -np.inf), 1, constant_values=-np.inf)
-    lo = np.pad(np.where(ok, img, np.inf), 1, constant_values=np.inf)
+    if valid is None:
+        hi = np.pad(img, 1, constant_values=-np.inf)
+        lo = np.pad(img, 1, constant_values=np.inf)
+    else:
+        ok = valid.reshape(height, width)
+        hi = np.pad(np.where(ok, img, -np.inf), 1, constant_values=-np.inf)
+        lo = np.pad(np.where(ok, img, np.inf), 1, constant_values=np.inf)
     mx = np.full((height, width), -np.inf, img.dtype)
     mn = np.full((height, width), np.inf, img.dtype)
     for dy in range(3):
         for dx in range(3):
+            if dy == 1 and dx == 1 and not centre:
+                continue
             np.maximum(mx, hi[dy:dy + height, dx:dx + width], out=mx)
             np.minimum(mn, lo[dy:dy + height, dx:dx + width], out=mn)
     return mx.ravel(), mn.ravel()

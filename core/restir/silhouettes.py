@@ -34,30 +34,12 @@ from .. import samplers
 from ..interaction import surface_hits
 from ..rows import gather
 from ..sampling import dot, luminance
+from .adaptive_direct import neighbourhood_range
 from .gbuffer import CAMERA_SAMPLE, camera_rays, seen_directly
 
 EDGE_CONTRAST = 1.0     # neighbours differing by more than this x the image's mean luminance
 OWN_CONTRAST = 4.0      # ... and by more than this: no history of it on a moving view
 MAX_EDGE_SHARE = 0.25   # at most this share of the image gets extra rays (the brightest edges)
-
-
-def neighbour_extremes(values, width, height, radius=1):
-    """(max, min) (P,) of ``values`` (P,) over each pixel's neighbours within
-    ``radius`` pixels (a square; the pixel itself left out, pixels outside
-    the image not counted: -inf and inf where there are none)."""
-    img = values.reshape(height, width)
-    r = int(radius)
-    hi = np.pad(img, r, constant_values=-np.inf)
-    lo = np.pad(img, r, constant_values=np.inf)
-    mx = np.full((height, width), -np.inf, img.dtype)
-    mn = np.full((height, width), np.inf, img.dtype)
-    for dy in range(2 * r + 1):
-        for dx in range(2 * r + 1):
-            if dy == r and dx == r:
-                continue
-            np.maximum(mx, hi[dy:dy + height, dx:dx + width], out=mx)
-            np.minimum(mn, lo[dy:dy + height, dx:dx + width], out=mn)
-    return mx.ravel(), mn.ravel()
 
 
 def edge_pixels(lum_seen, lum_other, width, height):
@@ -73,7 +55,7 @@ def edge_pixels(lum_seen, lum_other, width, height):
     refine_edges, which follow the number of edges) binds, a pixel's own
     ray can move the count of edges by at most the 8 around it."""
     lum_seen = np.asarray(lum_seen, np.float32)
-    mx, mn = neighbour_extremes(lum_seen, width, height)
+    mx, mn = neighbourhood_range(lum_seen, None, width, height, centre=False)
     span = mx - mn
     own = lum_seen + np.asarray(lum_other, np.float32)
     n = len(own)
@@ -145,5 +127,5 @@ def refine_edges(ctx, seed, frame, pixel_filter, seen, lum_direct, samples):
     # trail test (accumulation.previous_pixels) goes by object ids, so the
     # history of the radiance seen directly is held under the brightest of
     # this frame's pixels around it instead.
-    ceiling = np.maximum(neighbour_extremes(lum, scene.width, scene.height)[0], lum)
+    ceiling = neighbourhood_range(lum, None, scene.width, scene.height)[0]
     return RefinedSeen(own, ceiling)
