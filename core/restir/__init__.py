@@ -338,7 +338,7 @@ class ReSTIRGI:
             rows = accumulate(prev_acc, footprint, direct_total, indirect, one.albedo[a:b], img.n[a:b],
                               settings.accumulate, one.alpha[a:b], seen,
                               None if refined is None else refined.rows(a, b),
-                              None if gate is None else (gate[0][a:b], gate[1][a:b], gate[2])).data
+                              None if gate is None else gate.rows(a, b)).data
             shaded[a:b] = rows
             color = rows[:, 0:3] + rows[:, 3:6] + rows[:, 14:17]
             spent("shading", t)

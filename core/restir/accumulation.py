@@ -278,7 +278,7 @@ def _catmull_rom(t):
 
 
 def accumulate(prev, footprint, direct, indirect, albedo, normal, cap, alpha=1.0, seen=0.0, refined=None,
-               light_range=None):
+               direct_range=None):
     """This frame's Accumulation: the history over ``footprint`` (rows of the
     part) blended with this frame's values, over at most ``cap`` frames.
     prev: last frame's Accumulation (whole image) or None.
@@ -295,8 +295,7 @@ def accumulate(prev, footprint, direct, indirect, albedo, normal, cap, alpha=1.0
     of an emitter under another object's id, which the trail test of
     previous_pixels cannot see.
 
-    light_range: (lo, hi, floor) of this frame's direct light's luminance
-    in each pixel's 3x3 neighbourhood (light_range below; lo, hi (N,)), given
+    direct_range: DirectRange of the part's rows (light_range below), given
     when objects moved. Pixels whose neighbourhood agrees (spans under GATE_RELATIVE of
     its top) and whose history lies away from it start over. A moving
     object's shadow changes the light of surfaces that stay put, whose
@@ -336,9 +335,9 @@ def accumulate(prev, footprint, direct, indirect, albedo, normal, cap, alpha=1.0
         if over.any():
             h_seen[over] *= (refined.ceiling[over] / np.maximum(luminance(h_seen[over]), 1e-30))[:, None]
         h_seen[refined.own] = new[refined.own, 14:17]
-    if light_range is not None:
-        lo, hi, floor = light_range
-        m = np.maximum(luminance(hist[:, 0:3]), floor)
+    if direct_range is not None:
+        lo, hi = direct_range.lo, direct_range.hi
+        m = np.maximum(luminance(hist[:, 0:3]), direct_range.floor)
         away = (hi - lo <= GATE_RELATIVE * hi) & ((m - hi > GATE_RELATIVE * m) | (lo - m > GATE_RELATIVE * lo))
         hist[away] = new[away]
         hist[away, 12] = 0.0
@@ -350,20 +349,31 @@ def accumulate(prev, footprint, direct, indirect, albedo, normal, cap, alpha=1.0
     return Accumulation(hist)
 
 
+@dataclass
+class DirectRange:
+    """This frame's direct light's luminance over each pixel's 3x3
+    neighbourhood, for accumulate: both bounds at least ``floor``, the
+    image's faintest light worth telling apart, so a dark neighbourhood
+    agrees with itself and with a dark history."""
+    lo: np.ndarray          # (N,) float32
+    hi: np.ndarray          # (N,) float32
+    floor: np.float32
+
+    def rows(self, a, b):
+        return DirectRange(self.lo[a:b], self.hi[a:b], self.floor)
+
+
 def light_range(lum_direct, valid, width, height):
-    """(lo, hi, floor): lo, hi (P,) of the direct light's luminance
-    lum_direct (P,) over each pixel's 3x3 neighbourhood (valid pixels only),
-    for accumulate. Both are at least ``floor``, the image's faintest light
-    worth telling apart (1e-3 of its mean; the floor where no neighbour is
-    valid), so a dark neighbourhood agrees with itself and with a dark
-    history."""
+    """DirectRange of the direct light's luminance lum_direct (P,) over the
+    valid pixels of each 3x3 neighbourhood; the floor is 1e-3 of the image's
+    mean (and both bounds where no neighbour is valid)."""
     hi, lo = neighbourhood_range(lum_direct, valid, width, height)
     floor = np.float32(1e-3 * float(lum_direct[valid].mean())) if valid.any() else np.float32(0)
     none = ~np.isfinite(lo)
     hi = np.maximum(hi, floor)
     lo = np.maximum(lo, floor)
     hi[none] = lo[none] = floor
-    return lo.astype(np.float32), hi.astype(np.float32), floor
+    return DirectRange(lo.astype(np.float32), hi.astype(np.float32), floor)
 
 
 def restart(acc, cap=0):
