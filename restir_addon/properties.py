@@ -62,7 +62,7 @@ class RestirGISceneSettings(bpy.types.PropertyGroup):
         description="Cap on the number of past samples a temporal reservoir stands for",
     )
     spatial_m_cap: IntProperty(
-        name="Spatial M Cap", default=500, min=1, max=100000,
+        name="Spatial M Cap", default=100, min=1, max=100000,
         description="Cap on the number of samples a spatial reservoir carries over frames",
     )
     max_age: IntProperty(

@@ -57,7 +57,10 @@ class ReSTIRSettings:
     temporal: bool = True
     spatial: bool = True
     temporal_M_cap: float = 20.0
-    spatial_M_cap: float = 500.0
+    spatial_M_cap: float = 100.0    # Falcor's; 500 (Mitsuba's tutorial) kept the biased mode's
+                                    # carried spatial samples so long that the running means
+                                    # averaged few distinct ones: 32 frames, corpus, biased MSE
+                                    # 1-3 % lower everywhere, courtyard 13-17 % (docs/plan.md)
     max_age: int = 30
     spatial_neighbors: int = 4
     spatial_radius: float = 16.0    # pixels
