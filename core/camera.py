@@ -9,8 +9,7 @@ y = 0 at the bottom row, as Blender's render result stores it.
 import numpy as np
 
 from .rows import matmul3
-
-from .sampling import Distribution1D
+from .sampling import Distribution1D, square_to_concentric_disk
 
 
 def _fit(camera, width, height):
@@ -40,8 +39,38 @@ def pixel_size(camera, width, height):
     return sensor / max(camera.lens, 1e-6) / view, view
 
 
-def generate_rays(camera, width, height, pixel_xy):
+def aperture_points(camera, u):
+    """(N, 2) points on the lens (camera x, y in scene units) for uniforms u
+    (N, 2): uniform over a disk of radius aperture_size, or over a regular
+    polygon of ``aperture_blades`` corners inscribed in it, the middle of one
+    side at angle aperture_rotation (Cycles' orientation), x divided by
+    aperture_ratio (anamorphic bokeh)."""
+    blades = int(camera.aperture_blades)
+    if blades < 3:
+        p = square_to_concentric_disk(u).astype(np.float64)
+    else:
+        # A triangle between the centre and two neighbouring corners, then a
+        # uniform point in it.
+        k = np.minimum((u[:, 0] * blades).astype(np.int64), blades - 1)
+        v = u[:, 0] * blades - k            # reused: uniform in [0, 1) within the triangle's pick
+        step = 2.0 * np.pi / blades
+        a0 = camera.aperture_rotation + (k - 0.5) * step
+        c0 = np.stack([np.cos(a0), np.sin(a0)], axis=1)
+        c1 = np.stack([np.cos(a0 + step), np.sin(a0 + step)], axis=1)
+        s = np.sqrt(u[:, 1])[:, None]
+        p = s * ((1.0 - v)[:, None] * c0 + v[:, None] * c1)
+    p = p * camera.aperture_size
+    p[:, 0] /= max(float(camera.aperture_ratio), 1e-6)
+    return p
+
+
+def generate_rays(camera, width, height, pixel_xy, lens_u=None):
     """Rays through film positions pixel_xy (N, 2) in pixel units (x + 0.5 is a centre).
+
+    lens_u: (N, 2) uniforms for the lens position when the camera has depth
+    of field (aperture_size > 0); None traces through the lens centre (a
+    pinhole). Rays of one film position meet on the plane focus_distance
+    along the view axis, as in Cycles' thin lens.
 
     Returns origins, unit directions and tmax (clip_end), origins already moved
     to clip_start along the ray.
@@ -51,16 +80,38 @@ def generate_rays(camera, width, height, pixel_xy):
     x = (pixel_xy[:, 0] - 0.5 * width + camera.shift_x * view) * size
     y = (pixel_xy[:, 1] - 0.5 * height + camera.shift_y * view) * size
     n = len(pixel_xy)
+    lens = None
+    if lens_u is not None and camera.aperture_size > 0:
+        lens = aperture_points(camera, lens_u)
+    focus = max(float(camera.focus_distance), 1e-5)
     if camera.projection == "ORTHO":
         local_o = np.stack([x, y, np.full(n, -camera.clip_start)], axis=1)
+        local_d = np.broadcast_to(np.array([0.0, 0.0, -1.0]), (n, 3))
+        if lens is not None:
+            # From a point on the lens towards the film position's point on
+            # the focus plane, then to the clip plane along the ray.
+            local_d = np.stack([-lens[:, 0], -lens[:, 1], np.full(n, -focus)], axis=1)
+            local_d /= np.linalg.norm(local_d, axis=1)[:, None]
+            local_o[:, :2] += lens
+            local_o += local_d * (camera.clip_start / -local_d[:, 2])[:, None]
+            local_o[:, 2] = -camera.clip_start
         origins = pos + matmul3(local_o, axes.T)
-        d = np.broadcast_to(-axes[:, 2], (n, 3))
+        d = matmul3(np.ascontiguousarray(local_d), axes.T)
         tmax = np.full(n, camera.clip_end - camera.clip_start)
     else:
         local_d = np.stack([x, y, -np.ones(n)], axis=1)
         length = np.sqrt(x * x + y * y + 1.0)
-        d = matmul3(local_d, axes.T) / length[:, None]
-        origins = pos + d * (camera.clip_start * length)[:, None]
+        if lens is None:
+            d = matmul3(local_d, axes.T) / length[:, None]
+            origins = pos + d * (camera.clip_start * length)[:, None]
+        else:
+            target = local_d * focus
+            target[:, :2] -= lens
+            target /= np.linalg.norm(target, axis=1)[:, None]
+            d = matmul3(target, axes.T)
+            origins = pos + matmul3(np.stack([lens[:, 0], lens[:, 1], np.zeros(n)], axis=1), axes.T)
+            # Clipped as Cycles does: clip_start over the pinhole ray's cosine.
+            origins = origins + d * (camera.clip_start * length)[:, None]
         tmax = (camera.clip_end - camera.clip_start) * length
     return (origins.astype(np.float32), np.ascontiguousarray(d, dtype=np.float32),
             np.maximum(tmax, 1e-6).astype(np.float32))

@@ -63,6 +63,14 @@ def uniform2(seeds, dim):
     return np.stack([uniform(seeds, dim), uniform(seeds, dim + 1)], axis=1)
 
 
+def lens_uniforms(camera, seeds):
+    """(N, 2) uniforms for the lens position of camera rays (the camera's
+    dimensions after the pixel filter's), or None for a pinhole camera."""
+    if getattr(camera, "aperture_size", 0.0) <= 0:
+        return None
+    return uniform2(seeds, DIM_CAMERA + 2)
+
+
 def bounce_dim(bounce, offset):
     return DIM_BOUNCE_BASE + bounce * DIMS_PER_BOUNCE + offset
 

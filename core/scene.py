@@ -134,6 +134,15 @@ class Camera:
     shift_y: float = 0.0
     clip_start: float = 0.1
     clip_end: float = 1000.0
+    # Depth of field (a thin lens, as Cycles): aperture radius in scene units
+    # (0: a pinhole), the distance along the view axis that is in focus, and
+    # the aperture's shape: blades (0, or 3 and more for a polygon), their
+    # rotation (radians) and the anamorphic ratio (x is divided by it).
+    aperture_size: float = 0.0
+    focus_distance: float = 10.0
+    aperture_blades: int = 0
+    aperture_rotation: float = 0.0
+    aperture_ratio: float = 1.0
 
 
 @dataclass

@@ -5,13 +5,16 @@ import bpy
 ENGINE = "RESTIR_GI"
 
 # Built-in panels made for other engines that also apply to ours (material and
-# world node inputs, light settings), besides every panel open to BLENDER_RENDER.
+# world node inputs, light settings, the camera's depth of field), besides every
+# panel open to BLENDER_RENDER.
 EXTRA_PANELS = (
     "EEVEE_MATERIAL_PT_context_material",
     "EEVEE_MATERIAL_PT_surface",
     "EEVEE_WORLD_PT_surface",
     "DATA_PT_EEVEE_light",
     "DATA_PT_EEVEE_light_distance",
+    "DATA_PT_camera_dof",
+    "DATA_PT_camera_dof_aperture",
 )
 
 

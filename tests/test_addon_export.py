@@ -381,6 +381,39 @@ def test_camera_matches_blender_projection(addon, case, rng):
         np.testing.assert_allclose(f, (ndc.x * width, ndc.y * height), atol=1e-3)
 
 
+def test_camera_depth_of_field(addon):
+    """Depth of field as Cycles reads it: aperture radius lens / (2 f-stop)
+    (mm to scene units), 1 / (2 f-stop) for orthographic cameras, the focus
+    object's distance along the view axis, no blades a disk; off: a
+    pinhole. Its panels are shown for the engine."""
+    import bpy
+    scene = fresh()
+    cam = _camera("dof", lens=40.0)
+    cam.location, cam.rotation_euler = (1.0, -6.0, 2.0), (math.radians(80), 0.0, math.radians(10))
+    assert export(addon, 16, 16).camera.aperture_size == 0.0          # use_dof off
+    dof = cam.data.dof
+    dof.use_dof, dof.aperture_fstop, dof.focus_distance = True, 2.0, 3.5
+    dof.aperture_blades, dof.aperture_rotation, dof.aperture_ratio = 0, 0.4, 1.5
+    bpy.context.view_layer.update()
+    c = export(addon, 16, 16).camera
+    assert math.isclose(c.aperture_size, 40.0e-3 / 4.0, rel_tol=1e-6) and math.isclose(c.focus_distance, 3.5)
+    assert c.aperture_blades == 0 and math.isclose(c.aperture_ratio, 1.5) and math.isclose(c.aperture_rotation, 0.4, rel_tol=1e-6)
+    target = bpy.data.objects.new("target", None)
+    target.location = (3.0, 2.0, 1.0)
+    scene.collection.objects.link(target)
+    dof.focus_object, dof.aperture_blades = target, 6
+    bpy.context.view_layer.update()
+    c = export(addon, 16, 16).camera
+    view = np.array(cam.matrix_world)[:3, 2]
+    expected = abs(float(np.dot(view / np.linalg.norm(view), np.array(cam.matrix_world)[:3, 3] - target.location)))
+    assert math.isclose(c.focus_distance, expected, rel_tol=1e-5) and c.aperture_blades == 6
+    cam.data.type = "ORTHO"
+    bpy.context.view_layer.update()
+    assert math.isclose(export(addon, 16, 16).camera.aperture_size, 0.25, rel_tol=1e-6)
+    assert "RESTIR_GI" in bpy.types.DATA_PT_camera_dof.COMPAT_ENGINES
+    assert "RESTIR_GI" in bpy.types.DATA_PT_camera_dof_aperture.COMPAT_ENGINES
+
+
 def test_resolution_percentage(addon):
     import bpy
     scene = fresh()

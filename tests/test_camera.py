@@ -1,6 +1,7 @@
 """Blender's camera model in core.camera: primary rays and projection are
-inverse, the sensor fit, shift and clipping follow Blender, and the pixel
-filter samples Cycles' Blackman-Harris window."""
+inverse, the sensor fit, shift and clipping follow Blender, the pixel
+filter samples Cycles' Blackman-Harris window, and depth of field is
+Cycles' thin lens (its aperture sampled uniformly)."""
 
 import itertools
 
@@ -9,7 +10,7 @@ import pytest
 
 from chi2 import ChiSquareTest, box_domain, integrate
 from core import Camera
-from core.camera import PixelFilter, generate_rays, pixel_size, project, view_depth
+from core.camera import PixelFilter, aperture_points, generate_rays, pixel_size, project, view_depth
 from scenes import look_at
 
 SIZES = [(64, 48), (48, 64), (50, 50)]
@@ -175,3 +176,62 @@ def test09_pixel_filter_is_blackman_harris(width, rng):
 def test10_zero_width_filter_samples_the_pixel_centre(rng):
     u = rng.random((100, 2), dtype=np.float32)
     assert (PixelFilter(0.0).offsets(u) == 0).all()
+
+
+# --- depth of field -------------------------------------------------------------------
+
+@pytest.mark.parametrize("projection", PROJECTIONS)
+def test11_lens_rays_meet_on_the_focus_plane(projection, rng):
+    """All lens samples of one film position pass through the point the
+    pinhole ray sees on the plane focus_distance along the view axis; their
+    origins spread over the aperture around the pinhole's."""
+    cam = camera(projection, aperture_size=0.2, focus_distance=5.0)
+    n = 2000
+    xy = np.tile(np.array([[17.3, 29.8]], np.float32), (n, 1))
+    o0, d0, _ = generate_rays(cam, 64, 48, xy[:1])
+    o, d, _ = generate_rays(cam, 64, 48, xy, rng.random((n, 2), dtype=np.float32))
+    pos, _, _, back = axes(cam)
+
+    def on_focus_plane(o, d):      # where the rays cross the plane 5 in front of the camera
+        t = (5.0 - (-(o - pos) @ back)) / (-(d @ back))
+        return o + d * t[:, None]
+    pinhole = on_focus_plane(o0.astype(np.float64), d0.astype(np.float64))[0]
+    hits = on_focus_plane(o.astype(np.float64), d.astype(np.float64))
+    assert np.abs(hits - pinhole).max() < 1e-3
+    assert np.linalg.norm(d, axis=1) == pytest.approx(1.0, abs=1e-5)
+    # Origins (moved to the clip plane along their rays) spread over the
+    # aperture's radius around the pinhole origin, centred on it.
+    spread = np.linalg.norm(o - o0, axis=1)
+    assert spread.max() <= 0.2 * 1.05 and spread.max() > 0.2 * 0.9
+    assert np.abs((o - o0).mean(axis=0)).max() < 0.01
+    # Without lens uniforms, or without an aperture: the pinhole rays.
+    pin, _, _ = generate_rays(camera(projection), 64, 48, xy[:5], rng.random((5, 2), dtype=np.float32))
+    assert np.allclose(pin, generate_rays(cam, 64, 48, xy[:5])[0])
+
+
+@pytest.mark.parametrize("blades, ratio", [(0, 1.0), (5, 1.0), (6, 2.0)])
+def test12_aperture_is_uniform_over_its_shape(blades, ratio, rng):
+    """Uniform over a disk or a regular polygon inscribed in the aperture
+    radius (the middle of a side at the rotation angle, as Cycles), x
+    divided by the ratio."""
+    cam = Camera(aperture_size=0.5, aperture_blades=blades, aperture_rotation=0.3, aperture_ratio=ratio)
+    u = rng.random((400_000, 2), dtype=np.float32)
+    p = aperture_points(cam, u)
+    q = p / 0.5
+    q[:, 0] *= ratio        # back to the unit shape
+
+    def inside(q):
+        if blades == 0:
+            return np.hypot(q[:, 0], q[:, 1]) <= 1.0
+        half = np.pi / blades
+        a = np.arctan2(q[:, 1], q[:, 0]) - 0.3 + half
+        local = np.mod(a, 2 * half) - half    # angle from the middle of a side
+        return np.hypot(q[:, 0], q[:, 1]) * np.cos(local) <= np.cos(half)
+    area = np.pi if blades == 0 else 0.5 * blades * np.sin(2 * np.pi / blades)
+    assert inside(q).mean() > 0.9999
+    pdf = lambda x: np.where(inside(x), 1.0 / area, 0.0)  # noqa: E731
+    dom = box_domain([[-1, 1], [-1, 1]])
+    assert ChiSquareTest(lambda n: q.astype(np.float64), pdf, dom, res=(24, 24), sample_count=len(q), sub=16).run()
+    if blades:      # the corners are there: the polygon is inscribed in the radius
+        corner = np.array([np.cos(0.3 + np.pi / blades), np.sin(0.3 + np.pi / blades)])
+        assert np.linalg.norm(q - corner, axis=1).min() < 0.02

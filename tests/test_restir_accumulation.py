@@ -309,3 +309,29 @@ def test13_edges_keep_their_coverage_on_a_moving_view(monkeypatch):
     assert edges.sum() > 40
     flicker = lambda frames: np.abs(np.diff(frames, axis=0))[:, edges].mean()     # noqa: E731
     assert flicker(with_edges) < 0.85 * flicker(without)     # (0.69-0.73 over seeds)
+
+
+def test14_depth_of_field_still_matches_path_tracing():
+    """A camera with depth of field (lens rays jittered per frame, history
+    carried on a still view): the unbiased still has the path tracer's blur
+    and mean, block by block."""
+    scene = filtered_box()
+    cam = scene.camera
+    scene.camera = dataclasses.replace(cam, aperture_size=0.5, focus_distance=2.0, aperture_blades=5)
+    ctx = RenderContext.build(scene)
+    try:
+        ref = Reference(render_frame(ctx, RenderSettings(samples=1024, max_bounces=MAX_BOUNCES, seed=0)))
+        sharp = RenderContext.build(filtered_box())
+        try:    # the comparison tells blur apart: the pinhole image is another one
+            pinhole = Reference(render_frame(sharp, RenderSettings(samples=256, max_bounces=MAX_BOUNCES, seed=1)))
+        finally:
+            sharp.close()
+        assert np.abs(pinhole.mean - ref.mean).max() > 0.1
+        runs = []
+        for r in range(24):
+            out = render_restir(ctx, ReSTIRGI(), ReSTIRSettings(mode=UNBIASED, seed=5000 + r,
+                                                                max_bounces=MAX_BOUNCES), 0, frames=8, fresh=True)
+            runs.append(luminance(out.color))
+        assert_same_mean(np.stack(runs).astype(np.float64), ref, "unbiased still, depth of field")
+    finally:
+        ctx.close()

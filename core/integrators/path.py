@@ -137,7 +137,7 @@ def camera_pass(ctx, width, height, seed, frame, sample, max_bounces, pixel_filt
     seeds = samplers.path_seeds(seed, frame, pix, sample)
     xy = np.stack([pix % width, pix // width], axis=1).astype(np.float32) + 0.5
     xy += pixel_filter.offsets(samplers.uniform2(seeds, samplers.DIM_CAMERA))
-    o, d, tmax = generate_rays(scene.camera, width, height, xy)
+    o, d, tmax = generate_rays(scene.camera, width, height, xy, samplers.lens_uniforms(scene.camera, seeds))
     hits = ctx.accel.intersect_closest(o, d, tmax, camera=True)
 
     color = ctx.lights.emitted_along(o, d, np.minimum(hits.t, tmax))

@@ -165,12 +165,15 @@ CAMERA_SAMPLE = 0xC0FFEE      # the sample number of the G-buffer's camera rays 
 
 def camera_rays(scene, pixel_filter, pix, seeds):
     """Camera rays (o, d, tmax) through pixels pix (N,), jittered by the
-    pixel filter with each seed's camera dimensions (centres if seeds is None)."""
+    pixel filter and over the lens (depth of field) with each seed's camera
+    dimensions (centres through the lens centre if seeds is None)."""
     w, h = scene.width, scene.height
     xy = np.stack([pix % w, pix // w], axis=1).astype(np.float32) + 0.5
+    lens = None
     if seeds is not None:
         xy += pixel_filter.offsets(samplers.uniform2(seeds, samplers.DIM_CAMERA))
-    return generate_rays(scene.camera, w, h, xy)
+        lens = samplers.lens_uniforms(scene.camera, seeds)
+    return generate_rays(scene.camera, w, h, xy, lens)
 
 
 def seen_directly(ctx, o, d, tmax, hits, surf, idx):

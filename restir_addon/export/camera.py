@@ -40,4 +40,26 @@ def export_camera(depsgraph, warn):
         shift_y=float(data.shift_y),
         clip_start=float(data.clip_start),
         clip_end=float(data.clip_end),
+        **depth_of_field(cam_obj, data),
     )
+
+
+def depth_of_field(cam_obj, data):
+    """The camera's thin-lens settings as core.Camera fields, as Cycles reads
+    them: aperture radius lens / (2 f-stop) (lens in mm, so 1e-3 scene
+    units per mm; 1 / (2 f-stop) for an orthographic camera), and the focus
+    distance along the view axis to the focus object when there is one."""
+    dof = data.dof
+    if not dof.use_dof:
+        return {}
+    fstop = max(float(dof.aperture_fstop), 1e-5)
+    size = 1.0 / (2.0 * fstop) if data.type == "ORTHO" else float(data.lens) * 1e-3 / (2.0 * fstop)
+    focus = float(dof.focus_distance)
+    target = dof.focus_object
+    if target is not None:
+        m = np.array(cam_obj.matrix_world, np.float64)
+        view = m[:3, 2] / max(np.linalg.norm(m[:3, 2]), 1e-12)
+        focus = abs(float(np.dot(view, m[:3, 3] - np.array(target.matrix_world.translation, np.float64))))
+    blades = int(dof.aperture_blades)
+    return dict(aperture_size=size, focus_distance=max(focus, 1e-5), aperture_blades=blades if blades >= 3 else 0,
+                aperture_rotation=float(dof.aperture_rotation), aperture_ratio=float(dof.aperture_ratio))
