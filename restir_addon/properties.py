@@ -58,7 +58,7 @@ class RestirGISceneSettings(bpy.types.PropertyGroup):
         description="How each pixel draws the direction of its new sample (glossy surfaces use their BSDF)",
     )
     temporal_m_cap: IntProperty(
-        name="Temporal M Cap", default=20, min=1, max=10000,
+        name="Temporal M Cap", default=8, min=1, max=10000,
         description="Cap on the number of past samples a temporal reservoir stands for",
     )
     spatial_m_cap: IntProperty(

@@ -56,7 +56,10 @@ class ReSTIRSettings:
     initial_sampling: str = COSINE  # or "UNIFORM"
     temporal: bool = True
     spatial: bool = True
-    temporal_M_cap: float = 20.0
+    temporal_M_cap: float = 8.0     # RTXDI's; 20 held each sample for more frames, so the running
+                                    # means averaged fewer distinct ones: 32 frames, corpus,
+                                    # unbiased MSE 0-2 % lower, courtyard 22-28 %; biased within
+                                    # 0.5 % (docs/plan.md)
     spatial_M_cap: float = 100.0    # Falcor's; 500 (Mitsuba's tutorial) kept the biased mode's
                                     # carried spatial samples so long that the running means
                                     # averaged few distinct ones: 32 frames, corpus, biased MSE
