@@ -36,7 +36,7 @@ def view_update(engine, context, depsgraph):
             session = ViewportSession(**session_settings(depsgraph.scene))
             engine.viewport_session = session
             session.resize(context.region.width, context.region.height)
-            session.set_view(camera_from_region(context.region_data))
+            session.set_view(camera_from_region(context.region_data, depsgraph.scene))
             session.sync(depsgraph)
             session.start()
             return
@@ -57,7 +57,7 @@ def view_draw(engine, context, depsgraph):
         # update for add-on properties): compare them on every redraw (cheap).
         session.configure(**session_settings(depsgraph.scene))
         session.resize(region.width, region.height)
-        session.set_view(camera_from_region(context.region_data))
+        session.set_view(camera_from_region(context.region_data, depsgraph.scene))
         serial, frame = session.frame_serial, session.frame    # the thread may replace it
         if frame is not None and not bpy.app.background:
             _draw(engine, depsgraph.scene, frame, serial, region.width, region.height)

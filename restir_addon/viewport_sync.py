@@ -7,11 +7,12 @@ lets the instances of one mesh share it, ``_placed`` puts an instance in world
 space, and ``camera_from_region`` makes a core.Camera of the 3D view.
 """
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from ..core.scene import Camera
+from .export.camera import depth_of_field
 from .export.mesh import MeshData, place, read_corner_data, read_mesh, triangle_cross, unit_rows
 
 
@@ -131,9 +132,15 @@ def camera_from_view(view_matrix, window_matrix):
                   clip_end=float(far))
 
 
-def camera_from_region(region_data):
-    """core.Camera of a 3D viewport's RegionView3D."""
-    return camera_from_view(region_data.view_matrix, region_data.window_matrix)
+def camera_from_region(region_data, scene=None):
+    """core.Camera of a 3D viewport's RegionView3D. Looking through the
+    scene's camera (scene given), with its depth of field, as Cycles' viewport."""
+    camera = camera_from_view(region_data.view_matrix, region_data.window_matrix)
+    cam_obj = None if scene is None else scene.camera
+    if (cam_obj is not None and cam_obj.type == "CAMERA"
+            and getattr(region_data, "view_perspective", None) == "CAMERA"):
+        camera = replace(camera, **depth_of_field(cam_obj, cam_obj.data))
+    return camera
 
 
 def _same_camera(a, b):

@@ -407,9 +407,22 @@ def test_camera_depth_of_field(addon):
     view = np.array(cam.matrix_world)[:3, 2]
     expected = abs(float(np.dot(view / np.linalg.norm(view), np.array(cam.matrix_world)[:3, 3] - target.location)))
     assert math.isclose(c.focus_distance, expected, rel_tol=1e-5) and c.aperture_blades == 6
+    # The viewport looking through the camera has its depth of field; other views do not.
+    from types import SimpleNamespace
+    from_region = addon.restir_addon.viewport_sync.camera_from_region
+    view = np.linalg.inv(np.array(cam.matrix_world))
+    window = np.array([[2.0, 0, 0, 0], [0, 2.0, 0, 0], [0, 0, -1.002, -0.2002], [0, 0, -1.0, 0]])
+    through = from_region(SimpleNamespace(view_matrix=view, window_matrix=window, view_perspective="CAMERA"), scene)
+    free = from_region(SimpleNamespace(view_matrix=view, window_matrix=window, view_perspective="PERSP"), scene)
+    assert math.isclose(through.focus_distance, expected, rel_tol=1e-5) and through.aperture_size > 0
+    assert free.aperture_size == 0.0
     cam.data.type = "ORTHO"
     bpy.context.view_layer.update()
     assert math.isclose(export(addon, 16, 16).camera.aperture_size, 0.25, rel_tol=1e-6)
+    warnings = []
+    scene.render.use_motion_blur = True
+    addon.restir_addon.export.camera.export_camera(bpy.context.evaluated_depsgraph_get(), warnings.append)
+    assert any("Motion blur" in w for w in warnings)
     assert "RESTIR_GI" in bpy.types.DATA_PT_camera_dof.COMPAT_ENGINES
     assert "RESTIR_GI" in bpy.types.DATA_PT_camera_dof_aperture.COMPAT_ENGINES
 
