@@ -6,6 +6,8 @@ clip along the view axis between clip_start and clip_end. Pixel (x, y) has
 y = 0 at the bottom row, as Blender's render result stores it.
 """
 
+from dataclasses import replace
+
 import numpy as np
 
 from .rows import matmul3
@@ -62,6 +64,21 @@ def aperture_points(camera, u):
     p = p * camera.aperture_size
     p[:, 0] /= max(float(camera.aperture_ratio), 1e-6)
     return p
+
+
+def crop(camera, width, height, x0, y0, w, h):
+    """The camera that images the rectangle of pixels [x0, x0 + w) x [y0, y0 + h)
+    of a width x height image as a w x h image of its own (a render region):
+    the same pixel size, the sensor fitted to the new width, the shift moved
+    to the rectangle's centre."""
+    size, view = pixel_size(camera, width, height)
+    w, h = max(1, int(w)), max(1, int(h))
+    sx = (x0 + 0.5 * w - 0.5 * width) / w + camera.shift_x * view / w
+    sy = (y0 + 0.5 * h - 0.5 * height) / w + camera.shift_y * view / w
+    if camera.projection == "ORTHO":
+        return replace(camera, sensor_fit="HORIZONTAL", ortho_scale=size * w, shift_x=sx, shift_y=sy)
+    return replace(camera, sensor_fit="HORIZONTAL", sensor_width=size * w * max(camera.lens, 1e-6),
+                   shift_x=sx, shift_y=sy)
 
 
 def generate_rays(camera, width, height, pixel_xy, lens_u=None):

@@ -29,7 +29,7 @@ from ..core.integrators.bounces import Bounces
 from ..core.render import render_restir
 from ..core.restir import ReSTIRSettings
 from . import memory, state
-from .export.camera import render_size
+from .export.camera import render_region
 from .memory import SceneTooLarge
 from .passes import PASSES
 
@@ -222,7 +222,9 @@ def _render_restir(engine, ctx, scene, view_layer, width, height, export_s):
 
 def render(engine, depsgraph):
     scene = depsgraph.scene
-    width, height = render_size(scene)
+    # With a render region Blender's result is the region's size (cropped
+    # or not): the region is rendered as an image of its own.
+    width, height = render_region(scene)[2:]
     result = engine.begin_result(0, 0, width, height, layer=depsgraph.view_layer.name)
     images = None
     try:

@@ -70,7 +70,7 @@ class FrameScene(SceneSync):
         if (width, height) != self._display:
             self._display = (width, height)
             self._queue(size=self._display)
-        camera = export_camera(depsgraph, self.warnings)
+        camera = export_camera(depsgraph, self.warnings, region=True)
         if camera is not None and not _same_camera(camera, self._view):
             self._view = camera
             self.work.camera_updates += 1

@@ -255,3 +255,38 @@ def test_camera_cut_restarts_reuse(addon, reports, tmp_path):
     stream.restir.reset()
     bpy.ops.render.render(animation=True)
     assert stream.restir.frames == 3 + 3
+
+
+@pytest.mark.parametrize("mode", ["PATH", "RESTIR_BIASED"])
+def test_render_region(addon, reports, mode):
+    """Output > Render Region: Blender's result is the region's size; the
+    region renders as an image of its own (the same pixels as that part of
+    the whole image, up to noise), cropped or placed in the full frame."""
+    from blender_util import open_example, render_image, set_resolution, setup_restir
+    scene = open_example("cornell_box.blend")
+    set_resolution(scene, 48, 40)
+    setup_restir(scene, 64, 1, 4, mode)
+    scene.restir_gi.warmup_frames = 32
+    full = render_image(scene)
+    r = scene.render
+    r.use_border = True
+    r.border_min_x, r.border_max_x, r.border_min_y, r.border_max_y = 0.25, 0.75, 0.5, 1.0
+    r.use_crop_to_border = True
+    cropped = render_image(scene)
+    r.use_crop_to_border = False
+    placed = render_image(scene)
+    assert_valid(cropped, (20, 24))
+    assert_valid(placed, (40, 48))
+    assert reports.of("ERROR") == []
+    part = full[20:40, 12:36]
+    np.testing.assert_array_equal(placed[20:40, 12:36], cropped)
+    outside = np.ones((40, 48), bool)
+    outside[20:40, 12:36] = False
+    assert not placed[outside].any()
+    # The same picture: 4x4-pixel block means agree up to the noise.
+    def blocks(img):
+        return img.reshape(5, 4, 6, 4, 3).mean(axis=(1, 3))
+    assert abs(cropped.mean() / part.mean() - 1) < 0.03
+    assert np.abs(blocks(cropped) - blocks(part)).mean() < 0.1 * part.mean()
+    shifted = np.roll(part, 2, axis=1)     # two pixels off: clearly another picture (0.36)
+    assert np.abs(blocks(shifted) - blocks(part)).mean() > 0.2 * part.mean()

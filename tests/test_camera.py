@@ -10,7 +10,7 @@ import pytest
 
 from chi2 import ChiSquareTest, box_domain, integrate
 from core import Camera
-from core.camera import PixelFilter, aperture_points, generate_rays, pixel_size, project, view_depth
+from core.camera import PixelFilter, aperture_points, crop, generate_rays, pixel_size, project, view_depth
 from scenes import look_at
 
 SIZES = [(64, 48), (48, 64), (50, 50)]
@@ -235,3 +235,18 @@ def test12_aperture_is_uniform_over_its_shape(blades, ratio, rng):
     if blades:      # the corners are there: the polygon is inscribed in the radius
         corner = np.array([np.cos(0.3 + np.pi / blades), np.sin(0.3 + np.pi / blades)])
         assert np.linalg.norm(q - corner, axis=1).min() < 0.02
+
+
+@pytest.mark.parametrize("projection, fit", [("PERSP", "AUTO"), ("PERSP", "VERTICAL"), ("ORTHO", "AUTO")])
+def test13_cropped_camera_images_its_rectangle(projection, fit, rng):
+    """A render region: the cropped camera's pixel (x, y) is the full image's
+    pixel (x0 + x, y0 + y), rays and projection alike."""
+    cam = camera(projection, fit, shift=(0.05, -0.1))
+    x0, y0, w, h = 10, 31, 23, 9
+    part = crop(cam, 64, 48, x0, y0, w, h)
+    xy = rng.random((50, 2)).astype(np.float32) * [w, h]
+    o, d, t = generate_rays(part, w, h, xy)
+    o2, d2, t2 = generate_rays(cam, 64, 48, xy + np.array([x0, y0], np.float32))
+    assert np.allclose(o, o2, atol=1e-4) and np.allclose(d, d2, atol=1e-5) and np.allclose(t, t2, rtol=1e-5)
+    film, _ = project(part, w, h, o2 + 3.0 * d2)
+    assert np.allclose(film, xy, atol=1e-3)

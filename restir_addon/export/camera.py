@@ -2,6 +2,7 @@
 
 import numpy as np
 
+from ...core.camera import crop
 from ...core.scene import Camera
 
 
@@ -11,8 +12,34 @@ def render_size(scene):
     return max(1, int(r.resolution_x * scale)), max(1, int(r.resolution_y * scale))
 
 
-def export_camera(depsgraph, warn):
-    """core.Camera of the scene's active camera, or None when there is none."""
+def render_region(scene):
+    """(x0, y0, width, height): the pixels a final render computes, y0 from
+    the bottom. With Output > Render Region (use_border) the region, its
+    bounds truncated to pixels as Blender does (Blender's render result is
+    that size, cropped or not); else the whole image."""
+    w, h = render_size(scene)
+    r = scene.render
+    if not r.use_border:
+        return 0, 0, w, h
+    x0, x1 = int(r.border_min_x * w), int(r.border_max_x * w)
+    y0, y1 = int(r.border_min_y * h), int(r.border_max_y * h)
+    x0, y0 = min(max(x0, 0), w - 1), min(max(y0, 0), h - 1)
+    return x0, y0, max(1, min(x1, w) - x0), max(1, min(y1, h) - y0)
+
+
+def export_camera(depsgraph, warn, region=False):
+    """core.Camera of the scene's active camera, or None when there is none.
+    region: the camera of the render region alone (render_region), for final
+    renders."""
+    camera = _export_camera(depsgraph, warn)
+    scene = depsgraph.scene
+    if camera is None or not region or not scene.render.use_border:
+        return camera
+    x0, y0, w, h = render_region(scene)
+    return crop(camera, *render_size(scene), x0, y0, w, h)
+
+
+def _export_camera(depsgraph, warn):
     scene = depsgraph.scene
     cam_obj = scene.camera
     if cam_obj is None:
