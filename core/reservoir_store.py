@@ -97,6 +97,7 @@ class StoredReservoirs:
     prim2: np.ndarray   # (P,) int32
     lo16: np.ndarray    # (P, 3) float16
     seed: np.ndarray    # (P,) uint64
+    kind: np.ndarray    # (P,) int8
     age: np.ndarray     # (P,) int16
     w_sum: np.ndarray   # (P,) float32; None once the frame is done (nothing reads it after)
     M: np.ndarray       # (P,) float32
@@ -111,8 +112,8 @@ class StoredReservoirs:
             x2=np.zeros((n, 3), np.float32), ng2_oct=np.full((n, 2), _ZERO, np.int16),
             n2_oct=np.full((n, 2), _ZERO, np.int16), wo2_oct=np.full((n, 2), _ZERO, np.int16),
             prim2=np.full(n, -1, np.int32), lo16=np.zeros((n, 3), np.float16),
-            seed=np.zeros(n, np.uint64), age=np.zeros(n, np.int16), w_sum=np.zeros(n, np.float32),
-            M=np.zeros(n, np.float32), W=np.zeros(n, np.float32))
+            seed=np.zeros(n, np.uint64), kind=np.zeros(n, np.int8), age=np.zeros(n, np.int16),
+            w_sum=np.zeros(n, np.float32), M=np.zeros(n, np.float32), W=np.zeros(n, np.float32))
 
     @staticmethod
     def bytes_per_row(kept=False):

@@ -54,6 +54,8 @@ class Reservoirs:
                         # NO_SAMPLE, or WORLD_SAMPLE for the sky
     lo: np.ndarray      # (N, 3) outgoing radiance of x2 (path traced, NEE + MIS)
     seed: np.ndarray    # (N,) uint64 seed of the path from x2 (for validation)
+    kind: np.ndarray    # (N,) int8 kind of the sample ray (integrators/bounces.py): the
+                        # path from x2 counted it as its first bounce (for validation)
     age: np.ndarray     # (N,) int32 frames since the sample was created
     # --- resampling state --------------------------------------------------
     w_sum: np.ndarray   # (N,)
@@ -62,7 +64,7 @@ class Reservoirs:
 
     NO_SAMPLE = -1
     WORLD_SAMPLE = -2   # the ray escaped: x2 is a far point in its direction, lo the world
-    SAMPLE_FIELDS = ("x2", "ng2", "n2", "wo2", "prim2", "lo", "seed", "age")
+    SAMPLE_FIELDS = ("x2", "ng2", "n2", "wo2", "prim2", "lo", "seed", "kind", "age")
 
     def __len__(self):
         return len(self.M)
@@ -72,7 +74,7 @@ class Reservoirs:
         z3 = lambda: np.zeros((n, 3), np.float32)  # noqa: E731
         z1 = lambda: np.zeros(n, np.float32)  # noqa: E731
         return Reservoirs(x2=z3(), ng2=z3(), n2=z3(), wo2=z3(), prim2=np.full(n, -1, np.int32),
-                          lo=z3(), seed=np.zeros(n, np.uint64),
+                          lo=z3(), seed=np.zeros(n, np.uint64), kind=np.zeros(n, np.int8),
                           age=np.zeros(n, np.int32), w_sum=z1(), M=z1(), W=z1())
 
     def field(self, name, index):

@@ -20,6 +20,7 @@ def test_bounces_is_the_total_with_limits_per_kind():
     assert pickle.loads(pickle.dumps(b)) == b
     assert first_bounce_counts(3, Bounces(4)) is None
     assert first_bounce_counts(2, b).tolist() == [[1, 0, 0], [1, 0, 0]]
+    assert first_bounce_counts(2, b, np.int8([GLOSSY, TRANSMISSION])).tolist() == [[0, 1, 0], [0, 0, 1]]
 
 
 def test_count_ends_paths_past_a_limit():

@@ -1,4 +1,5 @@
-"""ReSTIR GI on shader-graph materials: a glass box and a textured floor.
+"""ReSTIR GI on shader-graph materials: a glass box and a textured floor;
+and on a metal box under a binding per-kind bounce limit.
 
 A visible point on glass has no diffuse lobe for the reservoirs to shade;
 its light comes from its own BSDF-sampled path (through the glass), and a
@@ -10,6 +11,7 @@ import numpy as np
 import pytest
 
 from core import RenderContext, RenderSettings, render_frame
+from core.integrators.bounces import Bounces
 from core.restir import UNBIASED, ReSTIRGI, ReSTIRSettings
 from core.sampling import luminance
 from core.shader import Link, Node, ShaderGraph
@@ -80,3 +82,46 @@ def test02_unbiased_matches_path_tracing(setup):
             result = restir.render_frame(ctx, settings, f)
         out.append(luminance(result.color))
     assert_same_mean(np.stack(out).astype(np.float64), ref, "glass and texture, unbiased")
+
+
+LIMITS = Bounces(4, 1, 4, 4)    # one diffuse bounce: binding, so a miscounted bounce shows
+
+
+def metal_box_scene():
+    """The Cornell box with its tall box rough metal."""
+    scene = cornell_box("area", SIZE, SIZE)
+    scene.filter_width = 0.0
+    from core import Materials
+    base = scene.materials
+    scene.materials = Materials.from_list([
+        {"name": base.names[i], "base_color": tuple(base.base_color[i]), "metallic": float(base.metallic[i]),
+         "roughness": float(base.roughness[i]), "specular": float(base.specular[i]), "ior": float(base.ior[i]),
+         "emission": tuple(base.emission[i])} for i in range(len(base))]
+        + [{"name": "metal", "base_color": (0.9, 0.9, 0.9), "metallic": 1.0, "roughness": 0.3}])
+    centre = scene.vertices[scene.triangles].mean(axis=1)
+    tall = (centre[:, 0] > -0.61) & (centre[:, 0] < -0.04) & (centre[:, 1] > -0.11) & (centre[:, 1] < 0.51) \
+        & (centre[:, 2] > 1e-4)
+    scene.material_ids = np.where(tall, len(base), scene.material_ids).astype(np.int32)
+    return scene
+
+
+def test03_glossy_sample_paths_count_a_glossy_bounce():
+    """The path from a sample point counts the sample ray as a bounce of the
+    kind of lobe that drew it, as the path tracer does: from a metal, a
+    glossy one. Counted as diffuse, the one diffuse bounce allowed here was
+    spent at the metal and the walls it reflects lost their indirect light."""
+    ctx = RenderContext.build(metal_box_scene())
+    try:
+        film = render_frame(ctx, RenderSettings(samples=REFERENCE_SPP, max_bounces=LIMITS, seed=0))
+        ref = (luminance(film.mean().reshape(-1, 3)).astype(np.float64),
+               film.variance_of_mean().reshape(-1).astype(np.float64))
+        out = []
+        for r in range(64):
+            restir = ReSTIRGI()
+            settings = ReSTIRSettings(mode=UNBIASED, seed=900 + r, max_bounces=LIMITS)
+            for f in range(4):
+                result = restir.render_frame(ctx, settings, f)
+            out.append(luminance(result.color))
+        assert_same_mean(np.stack(out).astype(np.float64), ref, "metal box, one diffuse bounce, unbiased")
+    finally:
+        ctx.close()

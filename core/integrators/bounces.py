@@ -74,11 +74,14 @@ def count(counts, kinds, limits):
     return counts[rows, kinds] > np.asarray(limits, np.int16)[kinds]
 
 
-def first_bounce_counts(n, max_bounces):
-    """Counts (n, 3) of paths that made one diffuse bounce (ReSTIR GI's sample
-    rays), or None when no per-kind limit binds."""
+def first_bounce_counts(n, max_bounces, kinds=None):
+    """Counts (n, 3) of paths that made one bounce (ReSTIR GI's sample rays)
+    of the given kinds (diffuse if None), or None when no per-kind limit binds."""
     if not binding(max_bounces):
         return None
     counts = np.zeros((n, 3), np.int16)
-    counts[:, DIFFUSE] = 1
+    if kinds is None:
+        counts[:, DIFFUSE] = 1
+    else:
+        counts[np.arange(n), np.asarray(kinds, np.int64)] = 1
     return counts

@@ -49,7 +49,7 @@ def validate(ctx, res, max_bounces, threshold=CHANGE_THRESHOLD):
         return np.concatenate([r.field(name, x) for r, x in zip(sets, rows)])[at]
 
     x2, ng2, n2, wo2 = (field(name, first) for name in ("x2", "ng2", "n2", "wo2"))
-    prim2, seed = field("prim2", first), seeds[first]
+    prim2, seed, kind = field("prim2", first), seeds[first], field("kind", first)
     mat2 = np.take(ctx.scene.material_ids, prim2)
 
     def retrace(a, b):      # the paths of distinct samples a..b, on the context's workers
@@ -57,7 +57,7 @@ def validate(ctx, res, max_bounces, threshold=CHANGE_THRESHOLD):
         surf = SurfaceHits(p=x2[k], ng=ng2[k], ns=n2[k],
                            wo=wo2[k], prim=prim2[k], material=mat2[k], front=np.ones(b - a, bool))
         return radiance_from_surface(ctx, surf, seed[k], 1, max_bounces,
-                                     counts=first_bounce_counts(b - a, max_bounces))
+                                     counts=first_bounce_counts(b - a, max_bounces, kind[k]))
 
     lo_new = concat_rows(ctx.workers.map(retrace, len(first)))[back]
     changed = _changed(luminance(field("lo", slice(None))), luminance(lo_new), threshold)
