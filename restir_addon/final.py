@@ -91,17 +91,19 @@ def frame_images(frame, width, height):
 
 
 def _write(result, images, width, height):
-    """Copy images into the render result's passes (black where missing)."""
+    """Copy images into the render result's passes (black where missing).
+    With multi-view (stereoscopy) every view's passes get the same images."""
     layer = result.layers[0]
     if images is None:
         images = {"Combined": to_rgba(np.zeros((height, width, 3), np.float32))}
-    layer.passes["Combined"].rect.foreach_set(images["Combined"].ravel())
-    for name, channels, _, _ in PASSES:
-        p = layer.passes.get(name)
-        data = images.get(name)
-        if p is None or data is None:
+    ours = {name for name, _, _, _ in PASSES} | {"Combined"}
+    for p in layer.passes.values():
+        data = images.get(p.name) if p.name in ours else None
+        if data is None:
             continue
-        p.rect.foreach_set(np.nan_to_num(data, nan=0.0, posinf=1e10, neginf=0.0).astype(np.float32).ravel())
+        if p.name != "Combined":
+            data = np.nan_to_num(data, nan=0.0, posinf=1e10, neginf=0.0).astype(np.float32)
+        p.rect.foreach_set(data.ravel())
 
 
 def _render_path(engine, ctx, scene, result, width, height, export_s):

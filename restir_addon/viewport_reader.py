@@ -15,7 +15,7 @@ from .export import film_transparent, instance_key, ray_visibility
 from .export.camera import export_camera, render_size
 from .export.lights import is_supported, light_row, row_signature
 from .export.materials import MaterialTable
-from .export.mesh import GEOMETRY_TYPES
+from .export.mesh import GEOMETRY_TYPES, unrendered
 from .export.world import export_world
 from .memory import check_geometry
 from .viewport_state import as_update
@@ -129,6 +129,8 @@ class SceneReader:
                     self.warnings(f"Light '{obj.name}' of type {obj.data.type} is not supported")
                 continue
             if obj.type not in GEOMETRY_TYPES:
+                if unrendered(obj):
+                    self.warnings(unrendered(obj))
                 continue
             orig = obj.original
             if compare:

@@ -183,10 +183,10 @@ def assert_valid(img, shape):
 class FakePass:
     def __init__(self, store, name):
         self.rect = self
-        self._store, self._name = store, name
+        self._store, self.name = store, name
 
     def foreach_set(self, data):
-        self._store[self._name] = np.array(data, np.float32)
+        self._store[self.name] = np.array(data, np.float32)
 
 
 class FakeEngine:

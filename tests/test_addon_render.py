@@ -162,6 +162,37 @@ def test_unsupported_node_reported(addon, reports, tmp_path):
     assert len(naming) == 1 and "Cartoon" in naming[0], reports.log
 
 
+def test_what_is_not_rendered_is_reported(addon, reports, tmp_path):
+    """Volume objects, point clouds, volume shading, displacement, motion blur
+    and stereoscopy each say they are not rendered; the render goes on, and
+    every stereo view gets the image."""
+    import bpy
+    scene = lit_plane_scene()
+    for name, data in (("Smoke", bpy.data.volumes.new("Smoke")), ("Dots", bpy.data.pointclouds.new("Dots"))):
+        scene.collection.objects.link(bpy.data.objects.new(name, data))
+    mat = bpy.data.materials.new("Fog")
+    tree = mat.node_tree
+    out = tree.nodes["Material Output"]
+    tree.links.new(tree.nodes.new("ShaderNodeVolumePrincipled").outputs[0], out.inputs["Volume"])
+    tree.links.new(tree.nodes.new("ShaderNodeDisplacement").outputs[0], out.inputs["Displacement"])
+    add_mesh("Foggy", *rect(-1, 1, -1, 1, z=1.0), mat=mat)
+    scene.render.use_motion_blur = True
+    scene.render.use_multiview = True
+    scene.render.views_format = "STEREO_3D"
+    settings = scene.render.image_settings
+    settings.file_format, settings.color_depth = "OPEN_EXR", "32"
+    scene.render.filepath = str(tmp_path / "what.exr")
+    bpy.ops.render.render(write_still=True)      # one file per view: what_L.exr, what_R.exr
+    warnings = reports.of("WARNING")
+    for text in ("'Smoke': volume objects", "'Dots': point clouds", "'Fog': volume shading",
+                 "'Fog': displacement", "Motion blur", "Stereoscopy"):
+        assert any(text in w for w in warnings), (text, reports.log)
+    left, right = read_exr(tmp_path / "what_L.exr"), read_exr(tmp_path / "what_R.exr")
+    assert_valid(left, (32, 32))
+    assert left.mean() > 0.05 and np.array_equal(left, right)
+    assert reports.of("ERROR") == []
+
+
 # ---------------------------------------------------------------- cancel
 
 @pytest.mark.parametrize("mode", ["PATH", "RESTIR_BIASED"])

@@ -9,7 +9,7 @@ from ...core.materials import shading
 from .camera import export_camera, render_size
 from .lights import is_supported, light_row
 from .materials import MaterialTable
-from .mesh import GEOMETRY_TYPES, place, read_corner_data, read_mesh
+from .mesh import GEOMETRY_TYPES, place, read_corner_data, read_mesh, unrendered
 from .world import export_world
 
 
@@ -111,6 +111,8 @@ def export_scene(depsgraph, width=None, height=None):
                 warn(f"Light '{obj.name}' of type {obj.data.type} is not supported")
             continue
         if obj.type not in GEOMETRY_TYPES:
+            if unrendered(obj):
+                warn(unrendered(obj))
             continue
         slot_ids = np.array([materials.id_of(s.material) for s in obj.material_slots] or [0], np.int32)
         entry = _object_mesh(obj, cache, materials.needs(slot_ids), warn)

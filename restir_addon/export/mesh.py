@@ -12,6 +12,15 @@ import numpy as np
 # their evaluated geometry over as a separate MESH instance (the one Cycles
 # renders), so converting the objects themselves would add every triangle twice.
 GEOMETRY_TYPES = {"MESH", "CURVES"}
+# Object types with geometry that this engine does not render: a warning each.
+UNRENDERED_TYPES = {"VOLUME": "volume objects are not rendered",
+                    "POINTCLOUD": "point clouds are not rendered"}
+
+
+def unrendered(obj):
+    """The warning for an object whose type has geometry this engine does not render, else None."""
+    what = UNRENDERED_TYPES.get(obj.type)
+    return None if what is None else f"Object '{obj.name}': {what}"
 
 
 @dataclass

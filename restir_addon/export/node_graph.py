@@ -99,6 +99,11 @@ def translate(tree, output_types=("OUTPUT_MATERIAL",), images=None, name=""):
         surface = output.inputs.get("Surface")
         if surface is not None and _available(surface):
             graph.output = _Translator(graph, images).reader_value(surface, _Scope(tree), output.name)
+        for socket, what in (("Volume", "volume shading is not rendered (only the surface)"),
+                             ("Displacement", "displacement is not rendered")):
+            other = output.inputs.get(socket)
+            if other is not None and other.is_linked and _available(other):
+                graph.warnings.append(what)
     except RecursionError:
         graph.warnings.append("node tree too deep to translate")
         graph.output = None
