@@ -13,7 +13,7 @@ import numpy as np
 
 from ..core.scene import Camera
 from .export.camera import depth_of_field
-from .export.mesh import MeshData, place, read_corner_data, read_mesh, triangle_cross, unit_rows
+from .export.mesh import MeshData, hair_warning, place, read_corner_data, read_mesh, triangle_cross, unit_rows
 
 
 @dataclass
@@ -58,7 +58,16 @@ def _mesh_key(obj):
 
 def _read_object_mesh(obj, keys=(), warn=None):
     """MeshData of an evaluated geometry object (None if it has no mesh),
-    with the corner data ``keys`` its materials read (export/mesh.py)."""
+    with the corner data ``keys`` its materials read (export/mesh.py); hair
+    it leaves out is a warning."""
+    mesh = _read_object_geometry(obj, keys, warn)
+    text = hair_warning(obj, mesh)
+    if text and warn is not None:
+        warn(text)
+    return mesh
+
+
+def _read_object_geometry(obj, keys, warn):
     def read(me):
         try:
             mesh = read_mesh(me)

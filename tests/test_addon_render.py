@@ -163,13 +163,18 @@ def test_unsupported_node_reported(addon, reports, tmp_path):
 
 
 def test_what_is_not_rendered_is_reported(addon, reports, tmp_path):
-    """Volume objects, point clouds, volume shading, displacement, motion blur
-    and stereoscopy each say they are not rendered; the render goes on, and
-    every stereo view gets the image."""
+    """Volume objects, point clouds, hair (curves and particles), volume
+    shading, displacement, motion blur and stereoscopy each say they are not
+    rendered; the render goes on, and every stereo view gets the image."""
     import bpy
     scene = lit_plane_scene()
-    for name, data in (("Smoke", bpy.data.volumes.new("Smoke")), ("Dots", bpy.data.pointclouds.new("Dots"))):
+    hair = bpy.data.hair_curves.new("Fur")
+    hair.add_curves([4, 4])
+    for name, data in (("Smoke", bpy.data.volumes.new("Smoke")), ("Dots", bpy.data.pointclouds.new("Dots")),
+                       ("Fur", hair)):
         scene.collection.objects.link(bpy.data.objects.new(name, data))
+    furry = add_mesh("Furry", *rect(-1, 1, -1, 1, z=0.5))
+    furry.modifiers.new("hair", "PARTICLE_SYSTEM").particle_system.settings.type = "HAIR"
     mat = bpy.data.materials.new("Fog")
     tree = mat.node_tree
     out = tree.nodes["Material Output"]
@@ -184,7 +189,8 @@ def test_what_is_not_rendered_is_reported(addon, reports, tmp_path):
     scene.render.filepath = str(tmp_path / "what.exr")
     bpy.ops.render.render(write_still=True)      # one file per view: what_L.exr, what_R.exr
     warnings = reports.of("WARNING")
-    for text in ("'Smoke': volume objects", "'Dots': point clouds", "'Fog': volume shading",
+    for text in ("'Smoke': volume objects", "'Dots': point clouds", "'Fur': hair curves",
+                 "'Furry': particle hair", "'Fog': volume shading",
                  "'Fog': displacement", "Motion blur", "Stereoscopy"):
         assert any(text in w for w in warnings), (text, reports.log)
     left, right = read_exr(tmp_path / "what_L.exr"), read_exr(tmp_path / "what_R.exr")

@@ -9,7 +9,7 @@ from ...core.materials import shading
 from .camera import export_camera, render_size
 from .lights import is_supported, light_row
 from .materials import MaterialTable
-from .mesh import GEOMETRY_TYPES, place, read_corner_data, read_mesh, unrendered
+from .mesh import GEOMETRY_TYPES, hair_warning, place, read_corner_data, read_mesh, unrendered
 from .world import export_world
 
 
@@ -32,6 +32,9 @@ def _object_mesh(obj, cache, keys, warn):
         key = obj.data.as_pointer()
         if key not in cache:
             cache[key] = _read(obj.data, obj.name, warn)
+            text = hair_warning(obj, None)
+            if text:
+                warn(text)
         entry = cache[key]
         if entry is not None and not keys <= set(entry[1]):
             entry[1].update(read_corner_data(obj.data, keys - set(entry[1]), warn, obj.name))
@@ -49,6 +52,9 @@ def _object_mesh(obj, cache, keys, warn):
                 entry[1].update(read_corner_data(me, keys, warn, obj.name))
             cache[key] = entry
             obj.to_mesh_clear()
+        text = hair_warning(obj, None if cache[key] is None else cache[key][0])
+        if text:
+            warn(text)
     return cache[key]
 
 

@@ -23,6 +23,20 @@ def unrendered(obj):
     return None if what is None else f"Object '{obj.name}': {what}"
 
 
+def hair_warning(obj, mesh):
+    """The warning for hair this engine does not render (strands are not
+    triangles): a hair curves object without faces, or a particle system of
+    hair drawn as strands (Render As Path). None otherwise. mesh: the
+    object's MeshData as read (None if it had none)."""
+    if obj.type == "CURVES" and (mesh is None or len(mesh.triangles) == 0):
+        return f"Object '{obj.name}': hair curves are not rendered"
+    for system in getattr(obj, "particle_systems", ()):
+        settings = system.settings
+        if settings.type == "HAIR" and settings.render_type == "PATH":
+            return f"Object '{obj.name}': particle hair is not rendered"
+    return None
+
+
 @dataclass
 class MeshData:
     positions: np.ndarray       # (V, 3) object space
