@@ -19,17 +19,19 @@ render never dies with a traceback.
 
 import time
 import traceback
+from dataclasses import replace
 
 import numpy as np
 
 from ..core import RenderSettings, render_frame
+from ..core.camera import crop
 from ..core.environment import scene_environment
 from ..core.film import to_rgba
 from ..core.integrators.bounces import Bounces
 from ..core.render import render_restir
 from ..core.restir import ReSTIRSettings
 from . import memory, state
-from .export.camera import render_region
+from .export.camera import export_camera, render_region, render_size
 from .memory import SceneTooLarge
 from .passes import PASSES
 
@@ -140,7 +142,7 @@ def _follows(engine, stream, scene):
             and stream.restir.history is not None and _camera_name(scene) == stream.last_camera)
 
 
-def _chunk_warmup(engine, depsgraph, stream, width, height):
+def _chunk_warmup(engine, depsgraph, stream, width, height, view=None):
     """The first frame N of an animation render that starts after the scene's
     first frame: render frames max(frame_start, N - chunk_warmup_frames) ..
     N - 1 along the animation (the scene evaluated at each, so reprojection
@@ -168,7 +170,8 @@ def _chunk_warmup(engine, depsgraph, stream, width, height):
             if engine.test_break():
                 return False
             engine.frame_set(f, 0.0)
-            if not frame_scene.update(depsgraph, width, height) or frame_scene.context is None:
+            camera = view_camera(engine, depsgraph, view, frame_scene.warnings)
+            if not frame_scene.update(depsgraph, width, height, camera) or frame_scene.context is None:
                 restart()
                 continue
             fresh = stream.last_frame is None
@@ -187,12 +190,11 @@ def _chunk_warmup(engine, depsgraph, stream, width, height):
             stream.last_frame, stream.last_camera = f, _camera_name(scene)
     finally:
         engine.frame_set(frame, 0.0)
-        frame_scene.update(depsgraph, width, height)
+        frame_scene.update(depsgraph, width, height, view_camera(engine, depsgraph, view, frame_scene.warnings))
     return True
 
 
-def _render_restir(engine, ctx, scene, view_layer, width, height, export_s):
-    stream = state.stream_for(scene.name, view_layer)
+def _render_restir(engine, ctx, scene, stream, width, height, export_s):
     memory.check_image(width, height, held=stream.restir.nbytes)
     settings = restir_settings(scene)
     frame = scene.frame_current
@@ -222,23 +224,63 @@ def _render_restir(engine, ctx, scene, view_layer, width, height, export_s):
     return frame_images(out, width, height)
 
 
+def view_names(scene):
+    """The views to render: [None] without stereoscopy; left and right for
+    Stereo 3D; the enabled views for Multi-View."""
+    r = scene.render
+    if not r.use_multiview:
+        return [None]
+    if r.views_format == "STEREO_3D":
+        return ["left", "right"]
+    return [v.name for v in r.views if v.use] or [None]
+
+
+def view_camera(engine, depsgraph, view, warn):
+    """core.Camera of one view of the scene camera (Blender's stereo rig:
+    the view's matrix and shift from the engine), or None for the camera
+    itself (view None)."""
+    if view is None:
+        return None
+    scene = depsgraph.scene
+    cam_obj = scene.camera
+    base = export_camera(depsgraph, warn)
+    if base is None or cam_obj is None or cam_obj.type != "CAMERA":
+        return base
+    engine.active_view_set(view)
+    matrix = np.array(engine.camera_model_matrix(cam_obj, use_spherical_stereo=False), np.float32).reshape(4, 4)
+    camera = replace(base, to_world=matrix,
+                     shift_x=float(engine.camera_shift_x(cam_obj, use_spherical_stereo=False)))
+    if scene.render.use_border:
+        camera = crop(camera, *render_size(scene), *render_region(scene))
+    return camera
+
+
 def render(engine, depsgraph):
+    """A frame: every view of it (one without stereoscopy)."""
+    for view in view_names(depsgraph.scene):
+        _render_view(engine, depsgraph, view)
+        if engine.test_break():
+            break
+
+
+def _render_view(engine, depsgraph, view):
     scene = depsgraph.scene
     # With a render region Blender's result is the region's size (cropped
     # or not): the region is rendered as an image of its own.
     width, height = render_region(scene)[2:]
-    result = engine.begin_result(0, 0, width, height, layer=depsgraph.view_layer.name)
+    result = engine.begin_result(0, 0, width, height, layer=depsgraph.view_layer.name, view=view or "")
     images = None
     try:
         engine.update_stats("", "Exporting scene")
-        stream = state.stream_for(scene.name, depsgraph.view_layer.name)
+        stream = state.stream_for(scene.name, depsgraph.view_layer.name, view)
         # A still is never continued (a render continues only an animation's
         # previous frame): its ReSTIR state is let go after its last frame,
         # before the images are copied to Blender, where a still peaks.
         stream.restir.keep_history = bool(engine.is_animation)
         continuing = engine.is_animation and stream.last_frame == scene.frame_current - 1
         frame_scene = stream.frame_scene
-        has_camera = frame_scene.update(depsgraph, width, height)
+        has_camera = frame_scene.update(depsgraph, width, height,
+                                        view_camera(engine, depsgraph, view, frame_scene.warnings))
         for text in frame_scene.new_warnings(repeat=not continuing):
             engine.report({"WARNING"}, text)
         core_scene, ctx = frame_scene.scene, frame_scene.context
@@ -262,12 +304,11 @@ def render(engine, depsgraph):
             images = _render_path(engine, ctx, scene, result, width, height, export_s)
         else:
             if engine.is_animation and not _follows(engine, stream, scene):
-                if not _chunk_warmup(engine, depsgraph, stream, width, height):
+                if not _chunk_warmup(engine, depsgraph, stream, width, height, view):
                     engine.report({"INFO"}, "Render cancelled during the chunk warm-up")
                     return
                 ctx = frame_scene.context
-            images = _render_restir(engine, ctx, scene, depsgraph.view_layer.name, width, height,
-                                    export_s)
+            images = _render_restir(engine, ctx, scene, stream, width, height, export_s)
         render_s = time.perf_counter() - t1
         trace_s = ctx.accel.trace_seconds - trace_before
         last_timings.clear()

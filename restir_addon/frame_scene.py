@@ -45,9 +45,10 @@ class FrameScene(SceneSync):
         self._reported = 0              # warnings already handed out by new_warnings
         self.timings = (0.0, 0.0)       # seconds of the last update: reading, applying
 
-    def update(self, depsgraph, width, height):
+    def update(self, depsgraph, width, height, camera=None):
         """Bring the core scene to this frame's depsgraph. Returns True if the
-        scene has a camera."""
+        scene has a camera. camera: the core.Camera to render with (one view
+        of a stereo pair) instead of the scene camera's."""
         t0 = time.perf_counter()
         scene = depsgraph.scene
         persistent = bool(scene.render.use_persistent_data)
@@ -70,7 +71,8 @@ class FrameScene(SceneSync):
         if (width, height) != self._display:
             self._display = (width, height)
             self._queue(size=self._display)
-        camera = export_camera(depsgraph, self.warnings, region=True)
+        if camera is None:
+            camera = export_camera(depsgraph, self.warnings, region=True)
         if camera is not None and not _same_camera(camera, self._view):
             self._view = camera
             self.work.camera_updates += 1

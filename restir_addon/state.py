@@ -1,7 +1,8 @@
 """Where a final render's state lives between frames.
 
 Blender makes a new RenderEngine for every animation frame unless persistent
-data is on, so each (scene, view layer) stream lives here, outside the engine:
+data is on, so each (scene, view layer) stream lives here, outside the engine
+(and each stereo view's, which shares its layer's exported scene):
 ReSTIR GI's reservoirs and the exported scene with its Embree scenes
 (frame_scene.py). Each stream remembers the last frame it rendered and its
 camera, so a jump in time (not the next frame) or a camera cut starts over.
@@ -20,21 +21,24 @@ _streams = {}
 
 
 class Stream:
-    def __init__(self):
+    def __init__(self, frame_scene=None):
         self.restir = ReSTIRGI()
         self.last_frame = None
         self.last_camera = None     # name of the camera object of that frame
-        self.frame_scene = FrameScene()
+        self.frame_scene = frame_scene if frame_scene is not None else FrameScene()
 
     def free(self):
         self.frame_scene.release()
         self.restir.reset()
 
 
-def stream_for(scene_name, layer_name):
-    key = (scene_name, layer_name)
+def stream_for(scene_name, layer_name, view=None):
+    """The stream of a view layer, or of one of its views (stereoscopy): a
+    view has reservoirs of its own and shares the layer's exported scene."""
+    key = (scene_name, layer_name) if view is None else (scene_name, layer_name, view)
     if key not in _streams:
-        _streams[key] = Stream()
+        shared = None if view is None else stream_for(scene_name, layer_name).frame_scene
+        _streams[key] = Stream(shared)
     return _streams[key]
 
 
@@ -49,8 +53,8 @@ def clear(*_args):
 @bpy.app.handlers.persistent
 def job_ended(scene, *_args):
     """A render job ended: free the exported scenes unless Persistent Data is on."""
-    for (scene_name, _layer), stream in _streams.items():
-        target = bpy.data.scenes.get(scene_name)
+    for key, stream in _streams.items():
+        target = bpy.data.scenes.get(key[0])
         if target is None or not target.render.use_persistent_data:
             stream.frame_scene.release()
 

@@ -198,7 +198,7 @@ class FakeEngine:
         passes = {n: FakePass(self.pixels, n) for n in names}
         self.result = type("Result", (), {"layers": [type("Layer", (), {"passes": passes})()]})()
 
-    def begin_result(self, x, y, w, h, layer=None):
+    def begin_result(self, x, y, w, h, layer=None, view=""):
         self.size = (w, h)
         return self.result
 

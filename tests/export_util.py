@@ -94,8 +94,8 @@ def export_for_render(addon, monkeypatch):
     captured = []
     real = frame_scene.FrameScene.update
 
-    def spy(self, depsgraph, width, height):
-        out = real(self, depsgraph, width, height)
+    def spy(self, depsgraph, width, height, camera=None):
+        out = real(self, depsgraph, width, height, camera)
         captured.append(self.scene)
         return out
 

@@ -57,8 +57,6 @@ def _export_camera(depsgraph, warn):
         warn("Non-square pixel aspect is not supported; rendering with square pixels")
     if scene.render.use_motion_blur:
         warn("Motion blur is not supported; rendering without it")
-    if scene.render.use_multiview:
-        warn("Stereoscopy (multi-view) is not supported; the views are rendered from the camera itself")
     return Camera(
         to_world=np.array(cam_obj.matrix_world, np.float32),
         projection=projection,
