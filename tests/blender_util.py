@@ -53,20 +53,17 @@ def setup_restir(scene, samples, seed, bounces, mode="PATH"):
     s.max_bounces = s.diffuse_bounces = s.glossy_bounces = s.transmission_bounces = bounces
 
 
-def render_image(scene):
-    """Render the current frame and return (H, W, 3) linear float32, row 0 at the bottom."""
+def render_image(scene, view=None):
+    """Render the current frame and return (H, W, 3) linear float32, row 0 at
+    the bottom. view: the suffix of one view's file with stereoscopy ("R")."""
     import bpy
     settings = scene.render.image_settings
     settings.file_format = "OPEN_EXR"
     settings.color_depth = "32"
-    fd, path = tempfile.mkstemp(suffix=".exr")
-    os.close(fd)
-    try:
-        scene.render.filepath = path
+    with tempfile.TemporaryDirectory() as tmp:
+        scene.render.filepath = os.path.join(tmp, "render.exr")
         bpy.ops.render.render(write_still=True)
-        return read_exr(path)
-    finally:
-        os.unlink(path)
+        return read_exr(os.path.join(tmp, "render.exr" if view is None else f"render_{view}.exr"))
 
 
 def block_means(img, block):
@@ -87,12 +84,13 @@ def diffuse_material(name, color):
     return mat
 
 
-def compare_with_cycles(scene, samples, bounces, block=8, clamp=None):
+def compare_with_cycles(scene, samples, bounces, block=8, clamp=None, view=None):
     """Render with both engines twice (seeds 1 and 2) and compare.
 
     clamp: compare min(pixel, clamp) instead of the pixels (both engines
     alike), so directly visible emitters, whose edges hold most of the
     anti-aliasing noise, do not drown what the comparison is about.
+    view: compare that view's image (render_image) of a stereo render.
 
     Returns a dict: ours and cycles (mean images), ratio of mean luminances,
     and chi: the squared block differences over their variance, estimated per
@@ -105,7 +103,7 @@ def compare_with_cycles(scene, samples, bounces, block=8, clamp=None):
         renders[name] = []
         for seed in (1, 2):
             setup(scene, samples, seed, bounces)
-            img = render_image(scene)
+            img = render_image(scene, view)
             renders[name].append(img if clamp is None else np.minimum(img, clamp))
     o = [block_means(i, block) for i in renders["ours"]]
     c = [block_means(i, block) for i in renders["cycles"]]
