@@ -11,7 +11,9 @@ frames on the still scene and writes their mean (core/render.py). An
 animation render that starts after the scene's first frame (a chunk of a farm
 render) first runs the ``chunk_warmup_frames`` frames before it along the
 animation, writing nothing, as if the animation had started there
-(``_chunk_warmup``).
+(``_chunk_warmup``). With stereoscopy every view is rendered into a result
+of its own, from Blender's stereo rig, with reservoirs of its own (state.py);
+a render region renders as an image of its own through a cropped camera.
 
 Every failure becomes a report and a valid (black or partial) result; the
 render never dies with a traceback.
@@ -93,8 +95,8 @@ def frame_images(frame, width, height):
 
 
 def _write(result, images, width, height):
-    """Copy images into the render result's passes (black where missing).
-    With multi-view (stereoscopy) every view's passes get the same images."""
+    """Copy images into the render result's passes (black where missing);
+    the result is one view's (render_view)."""
     layer = result.layers[0]
     if images is None:
         images = {"Combined": to_rgba(np.zeros((height, width, 3), np.float32))}
@@ -256,14 +258,15 @@ def view_camera(engine, depsgraph, view, warn):
 
 
 def render(engine, depsgraph):
-    """A frame: every view of it (one without stereoscopy)."""
-    for view in view_names(depsgraph.scene):
-        _render_view(engine, depsgraph, view)
+    """A frame: every view of it (one without stereoscopy), each into a
+    result of its own; the export's warnings are reported with the first."""
+    for i, view in enumerate(view_names(depsgraph.scene)):
+        _render_view(engine, depsgraph, view, report=i == 0)
         if engine.test_break():
             break
 
 
-def _render_view(engine, depsgraph, view):
+def _render_view(engine, depsgraph, view, report=True):
     scene = depsgraph.scene
     # With a render region Blender's result is the region's size (cropped
     # or not): the region is rendered as an image of its own.
@@ -281,7 +284,7 @@ def _render_view(engine, depsgraph, view):
         frame_scene = stream.frame_scene
         has_camera = frame_scene.update(depsgraph, width, height,
                                         view_camera(engine, depsgraph, view, frame_scene.warnings))
-        for text in frame_scene.new_warnings(repeat=not continuing):
+        for text in frame_scene.new_warnings(repeat=not continuing) if report else ():
             engine.report({"WARNING"}, text)
         core_scene, ctx = frame_scene.scene, frame_scene.context
         if not has_camera:
