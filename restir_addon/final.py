@@ -282,8 +282,10 @@ def _render_view(engine, depsgraph, view, report=True):
         stream.restir.keep_history = bool(engine.is_animation)
         continuing = engine.is_animation and stream.last_frame == scene.frame_current - 1
         frame_scene = stream.frame_scene
+        # A later view of the frame changes only the camera of the exported scene.
         has_camera = frame_scene.update(depsgraph, width, height,
-                                        view_camera(engine, depsgraph, view, frame_scene.warnings))
+                                        view_camera(engine, depsgraph, view, frame_scene.warnings),
+                                        camera_only=not report)
         for text in frame_scene.new_warnings(repeat=not continuing) if report else ():
             engine.report({"WARNING"}, text)
         core_scene, ctx = frame_scene.scene, frame_scene.context

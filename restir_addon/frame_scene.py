@@ -45,10 +45,12 @@ class FrameScene(SceneSync):
         self._reported = 0              # warnings already handed out by new_warnings
         self.timings = (0.0, 0.0)       # seconds of the last update: reading, applying
 
-    def update(self, depsgraph, width, height, camera=None):
+    def update(self, depsgraph, width, height, camera=None, camera_only=False):
         """Bring the core scene to this frame's depsgraph. Returns True if the
         scene has a camera. camera: the core.Camera to render with (one view
-        of a stereo pair) instead of the scene camera's."""
+        of a stereo pair) instead of the scene camera's; camera_only: the
+        depsgraph is the one of the last update (another view of the same
+        frame), so only the camera changes."""
         t0 = time.perf_counter()
         scene = depsgraph.scene
         persistent = bool(scene.render.use_persistent_data)
@@ -58,7 +60,9 @@ class FrameScene(SceneSync):
             self.threads = threads
         pointer = depsgraph.as_pointer()
         fresh_depsgraph = persistent and pointer != self._depsgraph
-        if self._instances is None or persistent != self._persistent or fresh_depsgraph:
+        if camera_only and self._instances is not None and pointer == self._depsgraph:
+            pass        # the geometry, materials and lights stay as the last update left them
+        elif self._instances is None or persistent != self._persistent or fresh_depsgraph:
             # Everything (a new depsgraph with Persistent Data has new data
             # throughout, and its meshes are keyed by data).
             self._stable_keys = not persistent

@@ -94,8 +94,8 @@ def export_for_render(addon, monkeypatch):
     captured = []
     real = frame_scene.FrameScene.update
 
-    def spy(self, depsgraph, width, height, camera=None):
-        out = real(self, depsgraph, width, height, camera)
+    def spy(self, depsgraph, width, height, camera=None, camera_only=False):
+        out = real(self, depsgraph, width, height, camera, camera_only)
         captured.append(self.scene)
         return out
 
