@@ -93,19 +93,29 @@ def main():
     dg = bpy.context.evaluated_depsgraph_get()
     core_scene, _ = export_scene(dg, w, h)
     settings = RenderSettings(samples=args.samples, max_bounces=args.bounces)
-    engine_rate, raw_rate, ratios = [], [], []
+    # The rays are recorded on threads (a forked twin's rays would stay in the
+    # child) and timed through embreex alone; frames are timed as rendered:
+    # one worker, and two (a twin process on Linux, core/forked.py).
+    setups = (("1 worker", 1, True), ("2 workers", 2, True))
+    engine_rate = {label: [] for label, _, _ in setups}
+    raw_rate = {label: [] for label, _, _ in setups}
+    ratios = {label: [] for label, _, _ in setups}
     for _ in range(args.repeats):
-        ctx = RenderContext.build(core_scene)
+        ctx = RenderContext.build(core_scene, threads=1, processes=False)
         rec = Recorder(ctx.accel)
-        t0 = time.perf_counter()
         render_frame(ctx, settings)
-        frame_s = time.perf_counter() - t0
-        rays = sum(len(b[1]) for b in rec.batches)
-        raw_s = raw_embree_seconds(core_scene, rec.batches, ctx.accel.threads)
         ctx.close()
-        engine_rate.append(rays / frame_s)
-        raw_rate.append(rays / raw_s)
-        ratios.append(raw_s / frame_s)
+        rays = sum(len(b[1]) for b in rec.batches)
+        for label, threads, processes in setups:
+            raw_s = raw_embree_seconds(core_scene, rec.batches, threads)
+            ctx = RenderContext.build(core_scene, threads=threads, processes=processes)
+            t0 = time.perf_counter()
+            render_frame(ctx, settings)
+            frame_s = time.perf_counter() - t0
+            ctx.close()
+            engine_rate[label].append(rays / frame_s)
+            raw_rate[label].append(rays / raw_s)
+            ratios[label].append(frame_s / raw_s)
 
     # 2. Frame time split, through the add-on's render callback.
     splits = []
@@ -122,9 +132,10 @@ def main():
     print(f"scene {Path(args.blend).name} {w}x{h}, {core_scene.triangle_count} triangles, "
           f"{args.samples} spp, {args.bounces} bounces, {args.repeats} repeats (medians)")
     print(f"rays per frame           {rays:,}")
-    print(f"engine rays/s            {med(engine_rate) / 1e6:.2f} M (whole frame time)")
-    print(f"raw embreex rays/s       {med(raw_rate) / 1e6:.2f} M (same rays, same threads)")
-    print(f"embree share of frame    {med(ratios) * 100:.0f} %")
+    for label, _, _ in setups:
+        print(f"{label:9s}: engine rays/s {med(engine_rate[label]) / 1e6:.2f} M (whole frame time), "
+              f"raw embreex {med(raw_rate[label]) / 1e6:.2f} M (same rays, same threads): "
+              f"frame = {med(ratios[label]):.1f}x pure Embree time")
     keys = ("export", "trace", "shade", "write")
     total = med([s["total"] for s in splits])
     print("frame time split (s)     " + ", ".join(f"{k} {med([s[k] for s in splits]):.3f}" for k in keys)

@@ -2,10 +2,13 @@
 
     .venv/bin/python bench/bench_restir.py [--blend ...] [--bounces 2] [--frames 12] [--scale 1]
 
-For one and two worker threads: median ms per pass over --frames frames of a
-warmed-up static view (ReSTIRGI.last_timings: wall time for the G-buffer and
-the whole frame, summed worker time for the passes the workers run), and the
-1 spp path-traced frame timed between them, with the ratio of the medians.
+For one worker, two worker threads, and two workers of which the second is a
+child process forked per pass (core/forked.py, the default on Linux): median
+ms per pass over --frames frames of a warmed-up static view
+(ReSTIRGI.last_timings: wall time for the G-buffer and the whole frame,
+summed worker time for the passes the workers run; with a child process only
+the parent's share), and the 1 spp path-traced frame timed between them,
+with the ratio of the medians and each setup's speed-up over one worker.
 """
 
 import argparse
@@ -39,10 +42,11 @@ def main():
     scene.filter_width = 0.0
     print(f"{Path(args.blend).name} {scene.width}x{scene.height}, {args.mode}, max_bounces "
           f"{args.bounces}, medians of {args.frames} frames (ms)\n")
-    print("| threads | " + " | ".join(PASSES) + " | PT 1 spp | ReSTIR / PT |")
-    print("|---:|" + "---:|" * (len(PASSES) + 2))
-    for threads in (1, 2):
-        ctx = RenderContext.build(scene, threads=threads)
+    print("| workers | " + " | ".join(PASSES) + " | PT 1 spp | ReSTIR / PT |")
+    print("|---|" + "---:|" * (len(PASSES) + 2))
+    totals = {}
+    for label, threads, processes in (("1", 1, False), ("2 threads", 2, False), ("2 (thread + child)", 2, True)):
+        ctx = RenderContext.build(scene, threads=threads, processes=processes)
         restir = ReSTIRGI()
         settings = ReSTIRSettings(mode=args.mode, max_bounces=args.bounces, seed=1)
         for f in range(4):
@@ -59,8 +63,13 @@ def main():
         ctx.close()
         med = {name: statistics.median(v) * 1000 for name, v in rows.items()}
         t_pt = statistics.median(pt) * 1000
-        print(f"| {threads} | " + " | ".join(f"{med[name]:.0f}" for name in PASSES)
+        totals[label] = (med["total"], t_pt)
+        print(f"| {label} | " + " | ".join(f"{med[name]:.0f}" for name in PASSES)
               + f" | {t_pt:.0f} | {med['total'] / t_pt:.2f}x |")
+    one = totals["1"]
+    print("\nspeed-up over one worker (ReSTIR frame, PT frame): "
+          + ", ".join(f"{label} {one[0] / t[0]:.2f}x / {one[1] / t[1]:.2f}x"
+                      for label, t in totals.items() if label != "1"))
 
 
 if __name__ == "__main__":

@@ -8,8 +8,16 @@ random numbers, so the result does not depend on the number of workers.
 
 Ray queries made from a worker run on that worker alone: the Accel's own
 two-thread split would only oversubscribe the cores.
+
+With ``processes`` (Linux), a render loop over an image of two ranges runs
+inside ``Workers.twin``: the process forks, and each pass's second range is
+computed by the child (core/forked.py). Two threads hand the GIL to each
+other at every numpy call, which on such images costs about what the second
+core gives; larger images (more ranges than workers, whose numpy calls are
+long enough for threads) stay on threads.
 """
 
+import contextlib
 import ctypes
 import ctypes.util
 import os
@@ -18,6 +26,8 @@ from concurrent.futures import ThreadPoolExecutor, wait
 
 import numpy as np
 
+from . import forked
+
 _local = threading.local()
 MIN_PIXELS_PER_WORKER = 4096     # below this a pass runs on the calling thread
 MAX_PIXELS_PER_RANGE = 1 << 17   # above this a pass is split into more ranges than workers
@@ -25,7 +35,7 @@ MAX_PIXELS_PER_RANGE = 1 << 17   # above this a pass is split into more ranges t
 
 def in_worker():
     """True on a Workers thread (Accel then traces on the calling thread)."""
-    return getattr(_local, "worker", False)
+    return getattr(_local, "worker", False) or forked.active() is not None
 
 
 def _mark_worker():
@@ -35,9 +45,12 @@ def _mark_worker():
 class Workers:
     """A small pool that maps a function over contiguous pixel ranges."""
 
-    def __init__(self, threads=None, max_range=MAX_PIXELS_PER_RANGE):
+    def __init__(self, threads=None, max_range=MAX_PIXELS_PER_RANGE, processes=True):
+        """processes: render loops in ``twin`` may fork a second process
+        (Linux, two workers); False keeps every pass on threads."""
         self.threads = max(1, threads or min(os.cpu_count() or 1, 2))
         self.max_range = max(1, int(max_range))
+        self.processes = bool(processes) and forked.AVAILABLE and self.threads == 2
         self._pool = (ThreadPoolExecutor(self.threads, initializer=_mark_worker)
                       if self.threads > 1 else None)
 
@@ -50,9 +63,15 @@ class Workers:
         bounds = np.linspace(0, n, parts + 1).astype(np.int64)
         return [(int(a), int(b)) for a, b in zip(bounds[:-1], bounds[1:])]
 
-    def map(self, fn, n):
-        """[fn(start, stop) for each range of [0, n)], in range order."""
+    def map(self, fn, n, written=()):
+        """[fn(start, stop) for each range of [0, n)], in range order.
+
+        written: whole-image arrays that fn fills in place by rows; declared
+        so that rows filled by the twin process (``twin``) reach them."""
         parts = self.ranges(n)
+        twin = forked.active()
+        if twin is not None and not twin.in_pass and len(parts) > 1:
+            return forked.run_pass(twin, fn, parts, written)
         if self._pool is None or len(parts) == 1 or in_worker():
             return [fn(a, b) for a, b in parts]
         futures = [self._pool.submit(fn, a, b) for a, b in parts]
@@ -61,13 +80,21 @@ class Workers:
         wait(futures)
         return [f.result() for f in futures]
 
-    def map_into(self, fn, n, out=None):
+    def map_into(self, fn, n, out=None, written=()):
         """concat_rows(self.map(fn, n)) without holding every range's result:
         each range's arrays are copied into whole-image arrays as soon as it
         returns, then dropped. out: those arrays (the structure fn returns,
         with (n, ...) arrays, e.g. of narrower types); allocated from the
         first result returned if None. Constants in the result (None, sizes)
-        are taken from that first result."""
+        are taken from that first result. written: as for map."""
+        parts = self.ranges(n)
+        twin = forked.active()
+        if twin is not None and not twin.in_pass and len(parts) > 1:
+            for (a, b), part in zip(parts, forked.run_pass(twin, fn, parts, written)):
+                if out is None:
+                    out = _alike(part, n)
+                _write_rows(out, part, a, b)
+            return out
         lock = threading.Lock()
         holder = [out]
 
@@ -80,8 +107,26 @@ class Workers:
             _write_rows(dst, part, a, b)
             return None
 
-        self.map(run, n)
+        self.map(run, n, written)
         return holder[0]
+
+    @contextlib.contextmanager
+    def twin(self, n):
+        """A render loop over images of n pixels, run by two processes (see
+        core/forked.py) when ``processes`` is on and n makes two ranges.
+        Yields True in the leading process (the caller's), False in the
+        twin, which must do nothing but compute (no reports, no stopping):
+        it is ended when the block ends, in both."""
+        use = (self.processes and self._pool is not None and len(self.ranges(n)) == 2
+               and forked.active() is None and not in_worker())
+        twin = forked.Twin.start() if use else None
+        if twin is None:
+            yield True
+            return
+        try:
+            yield twin.leader
+        finally:
+            twin.end()      # the twin exits here
 
     def close(self):
         if self._pool is not None:

@@ -49,24 +49,25 @@ def render_frame(ctx, settings, frame=0, on_sample=None, should_stop=None):
     pixel_filter = PixelFilter(scene.filter_width)
     start = time.perf_counter()
     n = w * h
-    for s in range(settings.samples):
-        color = np.zeros((n, 3), np.float32)
-        depth = np.zeros(n, np.float32)
-        normal = np.zeros((n, 3), np.float32)
-        albedo = np.zeros((n, 3), np.float32)
-        alpha = np.zeros(n, np.float32)
-        for a in range(0, n, CHUNK_PIXELS):
-            if should_stop is not None and should_stop():
-                return film
-            chunk = min(CHUNK_PIXELS, n - a)
-            res = path_trace_pixels(ctx, settings.seed, frame, s, settings.max_bounces,
-                                    pixel_filter, a, a + chunk)
-            rows = slice(a, a + chunk)
-            color[rows], depth[rows], normal[rows], albedo[rows] = res.color, res.depth, res.normal, res.albedo
-            alpha[rows] = res.alpha
-        film.add(color, depth=depth, normal=normal, albedo=albedo, alpha=alpha)
-        if on_sample is not None:
-            on_sample(film, time.perf_counter() - start)
+    with ctx.workers.twin(n) as lead:   # a second process on Linux (core/forked.py)
+        for s in range(settings.samples):
+            color = np.zeros((n, 3), np.float32)
+            depth = np.zeros(n, np.float32)
+            normal = np.zeros((n, 3), np.float32)
+            albedo = np.zeros((n, 3), np.float32)
+            alpha = np.zeros(n, np.float32)
+            for a in range(0, n, CHUNK_PIXELS):
+                if lead and should_stop is not None and should_stop():
+                    return film
+                chunk = min(CHUNK_PIXELS, n - a)
+                res = path_trace_pixels(ctx, settings.seed, frame, s, settings.max_bounces,
+                                        pixel_filter, a, a + chunk)
+                rows = slice(a, a + chunk)
+                color[rows], depth[rows], normal[rows], albedo[rows] = res.color, res.depth, res.normal, res.albedo
+                alpha[rows] = res.alpha
+            film.add(color, depth=depth, normal=normal, albedo=albedo, alpha=alpha)
+            if lead and on_sample is not None:
+                on_sample(film, time.perf_counter() - start)
     return film
 
 
@@ -92,22 +93,24 @@ def render_restir(ctx, restir, settings, frame, frames=1, fresh=False, on_frame=
         run = dataclasses.replace(settings, accumulate=STILL)
     settle = settle_frames(frames) if fresh else 0
     result = None
-    for i in range(max(1, frames)):
-        if should_stop is not None and should_stop():
-            break
-        if i == settle and i > 0:
-            restir.restart_accumulation()
-            # The mean of the frames converges as fast as they are independent;
-            # reservoirs that keep a sample for up to temporal_M_cap frames make
-            # neighbouring frames alike. Unbiased stills, 64 warm-up frames,
-            # three seeds (docs/plan.md): courtyard MSE 1.8x lower with a cap of
-            # 4 after settling, emitters and glossy 2 % lower, the two rooms
-            # lit through openings 3-4 % higher.
-            run = dataclasses.replace(run, temporal_M_cap=min(run.temporal_M_cap,
-                                                              settings.still_temporal_M_cap))
-        result = restir.render_frame(ctx, run, frame * 65536 + i)
-        if on_frame is not None:
-            on_frame(i, result)
+    scene = ctx.scene
+    with ctx.workers.twin(scene.width * scene.height) as lead:     # (core/forked.py)
+        for i in range(max(1, frames)):
+            if lead and should_stop is not None and should_stop():
+                break
+            if i == settle and i > 0:
+                restir.restart_accumulation()
+                # The mean of the frames converges as fast as they are independent;
+                # reservoirs that keep a sample for up to temporal_M_cap frames make
+                # neighbouring frames alike. Unbiased stills, 64 warm-up frames,
+                # three seeds (docs/plan.md): courtyard MSE 1.8x lower with a cap of
+                # 4 after settling, emitters and glossy 2 % lower, the two rooms
+                # lit through openings 3-4 % higher.
+                run = dataclasses.replace(run, temporal_M_cap=min(run.temporal_M_cap,
+                                                                  settings.still_temporal_M_cap))
+            result = restir.render_frame(ctx, run, frame * 65536 + i)
+            if lead and on_frame is not None:
+                on_frame(i, result)
     if not restir.keep_history:
         restir.reset()          # the result keeps the images it shows
         release_free_memory()

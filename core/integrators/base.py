@@ -25,10 +25,12 @@ class RenderContext:
     workers: Workers = SERIAL   # threads for whole-image passes (core/parallel.py)
 
     @staticmethod
-    def build(scene, threads=None):
+    def build(scene, threads=None, processes=True):
+        """processes: passes may run their second range in a forked child
+        (core/parallel.py); False keeps them on threads."""
         eps = RAY_EPS_RELATIVE * scene.extent()
         accel = transparency.wrap(Accel.from_scene(scene, threads), scene)
-        return RenderContext(scene, accel, LightSet(scene), eps, Workers(threads))
+        return RenderContext(scene, accel, LightSet(scene), eps, Workers(threads, processes=processes))
 
     def close(self):
         self.accel.close()

@@ -350,7 +350,7 @@ class ReSTIRGI:
             spent("shading", t)
             return (None if not settings.spatial else spatial), visibility, color
 
-        spatial, visibility, color = ctx.workers.map_into(reuse, n)
+        spatial, visibility, color = ctx.workers.map_into(reuse, n, written=(shaded,))
         if spatial is None:
             spatial = temporal      # without spatial reuse the two are one
         frame_acc = Accumulation(shaded)

@@ -1,0 +1,248 @@
+"""A twin process for the second core: the same computation, half of each pass.
+
+Two threads calling numpy at once hand the GIL to each other at every call,
+and on a virtual machine each hand-over wakes the other core: the passes of a
+320x180 frame make tens of thousands of calls of a few microseconds, and two
+threads ran them barely faster than one (bench/bench_threads.py: a chain of
+numpy calls over 28,800 rows, 1.28x on two threads, 1.86x on two processes).
+
+``Twin`` forks the process at the start of a render loop (the frames of a
+still, the samples of a path-traced image). Both processes then run the same
+code on the same data, which is deterministic (per-pixel random numbers from
+image-wide indices). At every whole-image pass (``Workers.map``) each computes
+its half of the pixel ranges and the two exchange their results, so both hold
+the whole pass and go on alike; the serial work between passes is done by
+both. Only the parent (the leader) reports progress and decides to stop; when
+the loop ends the child is killed. One fork per loop: the copy-on-write page
+faults that follow a fork are paid once, not at every pass.
+
+Exchange: each side writes a pass's results (pickle protocol 5, arrays as
+raw buffers) into an anonymous memory file of its own, two of them used in
+turn, and announces it on a pipe with the pass's number and size; a reader
+is always done with a file before its writer reuses it (it answers each
+message before the next is written). If the child dies, diverges or cannot
+send, the parent computes the child's ranges itself and goes on alone; an
+exception raised by the pass in the child is raised again in the parent.
+
+Only on Linux (no fork on Windows; unsafe on macOS with system frameworks);
+elsewhere passes use threads.
+"""
+
+import os
+import pickle
+import signal
+import struct
+import sys
+import threading
+import traceback
+
+AVAILABLE = sys.platform.startswith("linux") and hasattr(os, "fork") and hasattr(os, "memfd_create")
+
+_HEADER = struct.Struct("<QQ")      # pass number, bytes in the memory file
+
+
+class TwinLost(RuntimeError):
+    """The other process ended or diverged."""
+
+
+_local = threading.local()     # the render loop's Twin, on the thread that runs it
+
+
+def active():
+    """The Twin of the render loop this thread runs, or None (another thread
+    of the process, a viewport's say, never exchanges with it)."""
+    return getattr(_local, "twin", None)
+
+
+class Twin:
+    """The two processes of a forked render loop; ``leader`` in the parent."""
+
+    def __init__(self):
+        self.leader = True
+        self.pid = None
+        self.calls = 0
+        self.in_pass = False
+        self._files = None
+        self._pipes = None
+
+    @staticmethod
+    def start(on_child=None):
+        """Fork; returns the Twin in both processes (None if it could not fork)."""
+        twin = Twin()
+        files, pipes = [], []
+        try:
+            files = [os.memfd_create("restir-twin", os.MFD_CLOEXEC) for _ in range(4)]
+            pipes = [os.pipe(), os.pipe()]          # parent -> child, child -> parent
+            pid = os.fork()
+        except OSError:
+            for fd in files + [fd for p in pipes for fd in p]:
+                os.close(fd)
+            return None
+        (p2c_r, p2c_w), (c2p_r, c2p_w) = pipes
+        if pid == 0:
+            twin.leader = False
+            os.close(p2c_w)
+            os.close(c2p_r)
+            twin._pipes = (p2c_r, c2p_w)                 # read from, write to
+            twin._files = (files[2:], files[:2])         # mine, theirs
+            signal.signal(signal.SIGINT, signal.SIG_DFL)
+            _die_with_parent()
+            if on_child is not None:
+                on_child()
+        else:
+            twin.pid = pid
+            os.close(p2c_r)
+            os.close(c2p_w)
+            twin._pipes = (c2p_r, p2c_w)
+            twin._files = (files[:2], files[2:])
+        _local.twin = twin
+        return twin
+
+    def split(self, parts):
+        """(mine, theirs) of a pass's ranges: the parent takes the first half."""
+        half = (len(parts) + 1) // 2
+        return (parts[:half], parts[half:]) if self.leader else (parts[half:], parts[:half])
+
+    def exchange(self, payload):
+        """Send this side's payload of the next pass and return the other's."""
+        k = self.calls
+        self.calls += 1
+        self._send(k, payload)
+        return self._receive(k)
+
+    def _send(self, k, payload):
+        buffers = []
+        head = pickle.dumps(payload, protocol=5, buffer_callback=buffers.append)
+        raws = [b.raw() for b in buffers]
+        sizes = [len(head)] + [r.nbytes for r in raws]
+        fd = self._files[0][k % 2]
+        os.ftruncate(fd, 0)
+        os.lseek(fd, 0, os.SEEK_SET)       # (the duplicate below shares the offset)
+        with os.fdopen(os.dup(fd), "wb") as f:
+            f.write(struct.pack(f"<Q{len(sizes)}Q", len(sizes), *sizes))
+            f.write(head)
+            for r in raws:
+                f.write(r)
+            f.flush()
+            size = f.tell()
+        try:
+            os.write(self._pipes[1], _HEADER.pack(k, size))
+        except (BrokenPipeError, OSError) as e:
+            raise TwinLost(f"the other process is gone: {e}") from e
+
+    def _receive(self, k):
+        header = _read_exactly(self._pipes[0], _HEADER.size)
+        got_k, size = _HEADER.unpack(header)
+        if got_k != k:
+            raise TwinLost(f"the processes diverged (pass {got_k} against {k})")
+        data = bytearray(size)
+        view = memoryview(data)
+        fd = self._files[1][k % 2]
+        done = 0
+        while done < size:
+            n = os.preadv(fd, [view[done:]], done)
+            if n <= 0:
+                raise TwinLost("short read of the other process's results")
+            done += n
+        (count,) = struct.unpack_from("<Q", data, 0)
+        sizes = struct.unpack_from(f"<{count}Q", data, 8)
+        offset = 8 + 8 * count
+        head = view[offset:offset + sizes[0]]
+        offset += sizes[0]
+        buffers = []
+        for s in sizes[1:]:
+            buffers.append(view[offset:offset + s])
+            offset += s
+        return pickle.loads(head, buffers=buffers)
+
+    def end(self):
+        """Parent: kill and reap the child. Child: exit now (never returns)."""
+        if not self.leader:
+            os._exit(0)
+        if active() is self:
+            _local.twin = None
+        if self.pid is not None:
+            try:
+                os.kill(self.pid, signal.SIGKILL)
+            except ProcessLookupError:
+                pass
+            while True:
+                try:
+                    os.waitpid(self.pid, 0)
+                    break
+                except InterruptedError:
+                    continue
+                except ChildProcessError:
+                    break
+            self.pid = None
+        for fd in list(self._pipes) + list(self._files[0]) + list(self._files[1]):
+            try:
+                os.close(fd)
+            except OSError:
+                pass
+        self._pipes, self._files = (), ((), ())
+
+
+def run_pass(twin, fn, parts, written):
+    """[fn(a, b) for (a, b) in parts] with the twin computing its half.
+
+    written: whole-image arrays fn fills in place by rows; the other side's
+    rows of them are copied in. If the twin is lost the parent computes its
+    ranges too and goes on alone (the child exits)."""
+    mine, theirs = twin.split(parts)
+    twin.in_pass = True         # passes nested in fn run whole on each side
+    try:
+        results = [fn(a, b) for a, b in mine]
+        payload = ("ok", results, [[w[a:b] for a, b in mine] for w in written])
+    except Exception as e:
+        if twin.leader:
+            raise
+        payload = ("error", _picklable(e), traceback.format_exc())
+    finally:
+        twin.in_pass = False
+    try:
+        other = twin.exchange(payload)
+    except TwinLost:
+        twin.end()              # the child exits here; the parent kills it
+        return results + [fn(a, b) for a, b in theirs]
+    if payload[0] == "error":   # the parent raises it
+        twin.end()
+    if other[0] == "error":
+        twin.end()
+        raise other[1]
+    _, their_results, their_rows = other
+    for w, rows in zip(written, their_rows):
+        for (a, b), part in zip(theirs, rows):
+            w[a:b] = part
+    return results + their_results if twin.leader else their_results + results
+
+
+def _picklable(e):
+    try:
+        pickle.loads(pickle.dumps(e))
+        return e
+    except Exception:
+        return RuntimeError(f"{type(e).__name__}: {e}")
+
+
+def _read_exactly(fd, n):
+    out = b""
+    while len(out) < n:
+        try:
+            chunk = os.read(fd, n - len(out))
+        except InterruptedError:
+            continue
+        if not chunk:
+            raise TwinLost("the other process is gone")
+        out += chunk
+    return out
+
+
+def _die_with_parent():
+    """The child is killed if the parent dies (Linux prctl PR_SET_PDEATHSIG)."""
+    try:
+        import ctypes
+        libc = ctypes.CDLL(None)
+        libc.prctl(1, signal.SIGKILL)
+    except (OSError, AttributeError):
+        pass

@@ -1,0 +1,196 @@
+"""The twin process of a render loop (core/forked.py, Workers.twin): both
+processes compute half of every pass and exchange the rest, so the results
+are those of one process; failures on either side end in an exception or in
+the parent computing alone, never in a lost range or a leftover process."""
+
+import os
+
+import numpy as np
+import pytest
+
+from core import RenderContext, RenderSettings, render_frame
+from core import forked
+from core.parallel import MIN_PIXELS_PER_WORKER, Workers
+from core.render import render_restir
+from core.restir import BIASED, UNBIASED, ReSTIRGI, ReSTIRSettings
+from scenes import cornell_box
+
+pytestmark = pytest.mark.skipif(not forked.AVAILABLE, reason="fork and memfd_create: Linux only")
+
+N = 4 * MIN_PIXELS_PER_WORKER       # two ranges
+
+
+def gone(pid):
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return True
+    return False
+
+
+def test01_passes_are_whole_in_the_parent_and_rows_written_in_place_arrive():
+    workers = Workers(2)
+    try:
+        seen = np.zeros(N, np.int64)
+        with workers.twin(N) as lead:
+            assert forked.active() is not None
+            pids = np.concatenate(workers.map(lambda a, b: np.full(b - a, os.getpid()), N))
+
+            def fill(a, b):
+                seen[a:b] = np.arange(a, b) * 3
+                return np.arange(a, b)
+
+            got = workers.map_into(fill, N, written=(seen,))
+        assert lead and forked.active() is None
+        assert np.array_equal(got, np.arange(N)) and np.array_equal(seen, np.arange(N) * 3)
+        child = int(pids[-1])
+        assert pids[0] == os.getpid() and child != os.getpid()     # the second half came from the child
+        assert gone(child)
+    finally:
+        workers.close()
+
+
+def test02_an_exception_in_the_childs_ranges_is_raised_in_the_parent():
+    workers = Workers(2)
+    try:
+        def fn(a, b):
+            if a > 0:
+                raise ValueError(f"range {a} failed")
+            return b - a
+
+        with pytest.raises(ValueError, match="failed"):
+            with workers.twin(N):
+                workers.map(fn, N)
+        assert forked.active() is None
+    finally:
+        workers.close()
+
+
+def test03_a_child_that_dies_leaves_the_parent_to_finish_alone():
+    workers = Workers(2)
+    try:
+        def fn(a, b):
+            if a > 0 and forked.active() is not None and not forked.active().leader:
+                os._exit(3)      # dies without a word
+            return np.arange(a, b)
+
+        with workers.twin(N):
+            first = np.concatenate(workers.map(fn, N))
+            second = np.concatenate(workers.map(fn, N))     # alone from here on
+        assert np.array_equal(first, np.arange(N)) and np.array_equal(second, np.arange(N))
+    finally:
+        workers.close()
+
+
+def test04_an_exception_in_the_parent_ends_the_child():
+    workers = Workers(2)
+    try:
+        pids = []
+
+        def fn(a, b):
+            pids.append(os.getpid())
+            return np.full(b - a, os.getpid())
+
+        with pytest.raises(KeyError):
+            with workers.twin(N):
+                child = int(np.concatenate(workers.map(fn, N))[-1])
+                raise KeyError("cancelled")
+        assert gone(child) and forked.active() is None
+    finally:
+        workers.close()
+
+
+def test05_nested_passes_run_whole_on_each_side():
+    workers = Workers(2)
+    try:
+        def inner(a, b):
+            return np.arange(a, b)
+
+        def outer(a, b):
+            return np.concatenate(workers.map(inner, 3 * MIN_PIXELS_PER_WORKER))[a % 7:a % 7 + 1]
+
+        with workers.twin(N):
+            got = workers.map(outer, N)
+        assert [int(g[0]) for g in got] == [0, (N // 2) % 7]
+    finally:
+        workers.close()
+
+
+def test06_no_twin_without_processes_or_for_large_images():
+    for workers, n in ((Workers(2, processes=False), N), (Workers(1), N), (Workers(2, max_range=N // 4), N)):
+        try:
+            with workers.twin(n) as lead:
+                assert lead and forked.active() is None
+        finally:
+            workers.close()
+
+
+@pytest.fixture(scope="module")
+def contexts():
+    scene = cornell_box("area", 96, 96)
+    one = RenderContext.build(scene, threads=1)
+    two = RenderContext.build(scene, threads=2)
+    assert two.workers.processes and len(two.workers.ranges(96 * 96)) == 2
+    yield one, two
+    one.close()
+    two.close()
+
+
+@pytest.mark.parametrize("mode", [BIASED, UNBIASED])
+def test07_restir_frames_of_a_twin_loop_are_those_of_one_process(contexts, mode):
+    """A still's warm-up and the frames that follow it (render_restir's loop)
+    give exactly the one-worker images, in both modes."""
+    settings = ReSTIRSettings(mode=mode, max_bounces=2, seed=9)
+    results = []
+    for ctx in contexts:
+        restir = ReSTIRGI()
+        render_restir(ctx, restir, settings, 0, 4, fresh=True)
+        results.append(render_restir(ctx, restir, settings, 1, 3))
+    a, b = results
+    assert a.history_found > 0.5
+    for field in ("color", "direct", "indirect", "M", "W", "alpha"):
+        assert np.array_equal(getattr(a, field), getattr(b, field)), field
+
+
+def test08_path_tracing_progress_and_stop_are_the_leaders():
+    """on_sample reports from the parent only, and a stop there ends the loop."""
+    scene = cornell_box("area", 96, 96)
+    ctx = RenderContext.build(scene, threads=2)
+    try:
+        reports = []
+        film = render_frame(ctx, RenderSettings(samples=6, max_bounces=2, seed=1),
+                            on_sample=lambda film, s: reports.append(os.getpid()),
+                            should_stop=lambda: len(reports) >= 3)
+        assert reports == [os.getpid()] * 3 and film.count == 3
+        assert forked.active() is None
+        alone = RenderContext.build(scene, threads=1)
+        try:
+            three = render_frame(alone, RenderSettings(samples=3, max_bounces=2, seed=1))
+        finally:
+            alone.close()
+        assert np.array_equal(film.mean(), three.mean())
+    finally:
+        ctx.close()
+
+
+def test09_other_threads_of_the_process_do_not_take_part():
+    """A pass run by another thread during a twin loop (the viewport's, while
+    a final render runs) stays in this process, on threads."""
+    import threading
+    workers, other = Workers(2), Workers(2)
+    try:
+        got = {}
+        with workers.twin(N) as lead:
+            def run():
+                got["pids"] = np.concatenate(other.map(lambda a, b: np.full(b - a, os.getpid()), N))
+                got["twin"] = forked.active()
+            if lead:        # (the twin has no other threads; its copies of the pools are idle)
+                t = threading.Thread(target=run)
+                t.start()
+                t.join()
+            mine = np.concatenate(workers.map(lambda a, b: np.full(b - a, os.getpid()), N))
+        assert lead and got["twin"] is None and (got["pids"] == os.getpid()).all()
+        assert mine[-1] != os.getpid()
+    finally:
+        workers.close()
+        other.close()
