@@ -34,6 +34,7 @@ import signal
 import struct
 import sys
 import threading
+import time
 import traceback
 
 AVAILABLE = sys.platform.startswith("linux") and hasattr(os, "fork") and hasattr(os, "memfd_create")
@@ -62,13 +63,16 @@ class Twin:
         self.pid = None
         self.calls = 0
         self.in_pass = False
+        self.balance = {}       # pass -> the parent's share of its pixels
         self._files = None
         self._pipes = None
 
     @staticmethod
-    def start(on_child=None):
-        """Fork; returns the Twin in both processes (None if it could not fork)."""
+    def start(on_child=None, balance=None):
+        """Fork; returns the Twin in both processes (None if it could not fork).
+        balance: the passes' splits learnt by an earlier loop."""
         twin = Twin()
+        twin.balance = dict(balance or {})
         files, pipes = [], []
         try:
             files = [os.memfd_create("restir-twin", os.MFD_CLOEXEC) for _ in range(4)]
@@ -102,6 +106,19 @@ class Twin:
         """(mine, theirs) of a pass's ranges: the parent takes the first half."""
         half = (len(parts) + 1) // 2
         return (parts[:half], parts[half:]) if self.leader else (parts[half:], parts[:half])
+
+    def rebalance(self, key, parts, seconds):
+        """The parent's share of the next pass ``key`` from the (parent,
+        child) seconds of this one over ``parts``: each side's pixels per
+        second, halfway towards equal times (stable against noise)."""
+        (a, m), (_, b) = parts
+        if min(seconds) <= 0 or m <= a or b <= m:
+            return
+        share = (m - a) / (b - a)
+        fast = (m - a) / seconds[0]
+        slow = (b - m) / seconds[1]
+        even = fast / (fast + slow)
+        self.balance[key] = min(0.9, max(0.1, 0.5 * share + 0.5 * even))
 
     def exchange(self, payload):
         """Send this side's payload of the next pass and return the other's."""
@@ -184,16 +201,27 @@ class Twin:
 
 
 def run_pass(twin, fn, parts, written):
-    """[fn(a, b) for (a, b) in parts] with the twin computing its half.
+    """(ranges, [fn(a, b) for (a, b) in ranges]) with the twin computing its
+    share: ``parts`` as given, or, for two ranges, split where the two
+    processes took equal time on this pass the last times (the bottom half
+    of a courtyard, ground and walls, costs twice the sky above it). Both
+    processes derive the split from the times they exchanged, so they agree;
+    the image does not depend on it (per-pixel random numbers).
 
     written: whole-image arrays fn fills in place by rows; the other side's
     rows of them are copied in. If the twin is lost the parent computes its
     ranges too and goes on alone (the child exits)."""
+    key = (getattr(fn, "__qualname__", ""), parts[0][0], parts[-1][1])
+    if len(parts) == 2:
+        a, b = parts[0][0], parts[-1][1]
+        m = a + int(round(twin.balance.get(key, 0.5) * (b - a)))
+        parts = [(a, m), (m, b)]
     mine, theirs = twin.split(parts)
     twin.in_pass = True         # passes nested in fn run whole on each side
+    t0 = time.perf_counter()
     try:
         results = [fn(a, b) for a, b in mine]
-        payload = ("ok", results, [[w[a:b] for a, b in mine] for w in written])
+        payload = ("ok", results, [[w[a:b] for a, b in mine] for w in written], time.perf_counter() - t0)
     except Exception as e:
         if twin.leader:
             raise
@@ -204,17 +232,20 @@ def run_pass(twin, fn, parts, written):
         other = twin.exchange(payload)
     except TwinLost:
         twin.end()              # the child exits here; the parent kills it
-        return results + [fn(a, b) for a, b in theirs]
+        return parts, results + [fn(a, b) for a, b in theirs]
     if payload[0] == "error":   # the parent raises it
         twin.end()
     if other[0] == "error":
         twin.end()
         raise other[1]
-    _, their_results, their_rows = other
+    _, their_results, their_rows, their_seconds = other
     for w, rows in zip(written, their_rows):
         for (a, b), part in zip(theirs, rows):
             w[a:b] = part
-    return results + their_results if twin.leader else their_results + results
+    if len(parts) == 2:
+        seconds = (payload[3], their_seconds) if twin.leader else (their_seconds, payload[3])
+        twin.rebalance(key, parts, seconds)
+    return parts, (results + their_results if twin.leader else their_results + results)
 
 
 def _picklable(e):

@@ -51,6 +51,7 @@ class Workers:
         self.threads = max(1, threads or min(os.cpu_count() or 1, 2))
         self.max_range = max(1, int(max_range))
         self.processes = bool(processes) and forked.AVAILABLE and self.threads == 2
+        self._balance = {}
         self._pool = (ThreadPoolExecutor(self.threads, initializer=_mark_worker)
                       if self.threads > 1 else None)
 
@@ -71,7 +72,7 @@ class Workers:
         parts = self.ranges(n)
         twin = forked.active()
         if twin is not None and not twin.in_pass and len(parts) > 1:
-            return forked.run_pass(twin, fn, parts, written)
+            return forked.run_pass(twin, fn, parts, written)[1]
         if self._pool is None or len(parts) == 1 or in_worker():
             return [fn(a, b) for a, b in parts]
         futures = [self._pool.submit(fn, a, b) for a, b in parts]
@@ -90,7 +91,7 @@ class Workers:
         parts = self.ranges(n)
         twin = forked.active()
         if twin is not None and not twin.in_pass and len(parts) > 1:
-            for (a, b), part in zip(parts, forked.run_pass(twin, fn, parts, written)):
+            for (a, b), part in zip(*forked.run_pass(twin, fn, parts, written)):
                 if out is None:
                     out = _alike(part, n)
                 _write_rows(out, part, a, b)
@@ -117,15 +118,19 @@ class Workers:
         Yields True in the leading process (the caller's), False in the
         twin, which must do nothing but compute (no reports, no stopping):
         it is ended when the block ends, in both."""
-        use = (self.processes and self._pool is not None and len(self.ranges(n)) == 2
-               and forked.active() is None and not in_worker())
-        twin = forked.Twin.start() if use else None
+        outer = forked.active()
+        if outer is not None:       # a loop inside a twin's loop: its roles hold
+            yield outer.leader
+            return
+        use = self.processes and self._pool is not None and len(self.ranges(n)) == 2 and not in_worker()
+        twin = forked.Twin.start(balance=self._balance) if use else None
         if twin is None:
             yield True
             return
         try:
             yield twin.leader
         finally:
+            self._balance = dict(twin.balance)     # where to split the passes of the next loop
             twin.end()      # the twin exits here
 
     def close(self):

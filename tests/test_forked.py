@@ -194,3 +194,37 @@ def test09_other_threads_of_the_process_do_not_take_part():
     finally:
         workers.close()
         other.close()
+
+
+def test10_a_loop_inside_a_twin_loop_keeps_its_roles():
+    workers = Workers(2)
+    try:
+        with workers.twin(N) as lead:
+            with workers.twin(N) as inner:
+                roles = (lead, inner)
+                child = int(np.concatenate(workers.map(lambda a, b: np.full(b - a, os.getpid()), N))[-1])
+        assert roles == (True, True) and child != os.getpid() and gone(child)
+    finally:
+        workers.close()
+
+
+def test11_the_split_follows_where_the_time_goes():
+    """Rows of the upper half cost more: after a few passes the parent (lower
+    half) takes more than half of the rows, and every pass is still whole."""
+    import time as _time
+    workers = Workers(2)
+    try:
+        def fn(a, b):
+            heavy = max(0, b - max(a, N // 2))
+            _time.sleep(2e-5 * (heavy * 4 + (b - a)))
+            return np.full(b - a, os.getpid())
+
+        with workers.twin(N):
+            shares = []
+            for _ in range(6):
+                pids = np.concatenate(workers.map(fn, N))
+                assert len(pids) == N
+                shares.append(float((pids == os.getpid()).mean()))
+        assert shares[0] == 0.5 and shares[-1] > 0.6, shares
+    finally:
+        workers.close()

@@ -146,8 +146,8 @@ def trace_gbuffer(ctx, seed, frame, pixel_filter, jitter=True):
     pixel ranges on the context's workers."""
     scene = ctx.scene
     n = scene.width * scene.height
-    ranges = ctx.workers.ranges(n)
     parts = ctx.workers.map(lambda a, b: trace_rows(ctx, seed, frame, pixel_filter, jitter, a, b), n)
+    ranges = [(g.offset, g.offset + len(g.valid)) for g in parts]      # (a twin may split elsewhere)
     if len(parts) == 1:
         return parts[0]
     # The whole image's per-pixel arrays; its hits and shading frames stay
