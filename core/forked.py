@@ -30,6 +30,7 @@ elsewhere passes use threads.
 
 import os
 import pickle
+import select
 import signal
 import struct
 import sys
@@ -40,6 +41,7 @@ import traceback
 AVAILABLE = sys.platform.startswith("linux") and hasattr(os, "fork") and hasattr(os, "memfd_create")
 
 _HEADER = struct.Struct("<QQ")      # pass number, bytes in the memory file
+IDLE_SECONDS = 60.0     # a parked twin that is not resumed within this exits
 
 
 class TwinLost(RuntimeError):
@@ -101,6 +103,51 @@ class Twin:
             twin._files = (files[:2], files[2:])
         _local.twin = twin
         return twin
+
+    def park(self):
+        """(parent) Leave the twin waiting for the next loop (``resume``);
+        this thread has no active twin meanwhile."""
+        if active() is self:
+            _local.twin = None
+
+    def resume(self, fn, args):
+        """(parent) Start the next loop in the parked twin: it runs
+        fn(*its_state, *args) (see ``serve``). False if the twin is gone."""
+        if self.pid is None:
+            return False
+        try:
+            done, _ = os.waitpid(self.pid, os.WNOHANG)
+        except ChildProcessError:
+            done = self.pid
+        if done:                    # exited (idle too long, or killed)
+            self.pid = None
+            return False
+        k = self.calls
+        try:
+            self._send(k, (fn, args))
+        except TwinLost:
+            return False
+        self.calls += 1
+        _local.twin = self
+        return True
+
+    def serve(self, state):
+        """(child) Wait for the parent's next loop and run it, again and
+        again: state = fn(*state, *args) for each (fn, args) resumed with.
+        Exits when none comes for IDLE_SECONDS, when the parent is gone, or
+        when a loop fails (the parent then goes on alone). Never returns."""
+        try:
+            while True:
+                ready, _, _ = select.select([self._pipes[0]], [], [], IDLE_SECONDS)
+                if not ready:
+                    break
+                k = self.calls
+                fn, args = self._receive(k)
+                self.calls += 1
+                state = fn(*state, *args)
+        except BaseException:
+            pass
+        os._exit(0)
 
     def split(self, parts):
         """(mine, theirs) of a pass's ranges: the parent takes the first half."""

@@ -19,6 +19,7 @@ long enough for threads) stay on threads.
 
 import contextlib
 import ctypes
+import dataclasses
 import ctypes.util
 import os
 import threading
@@ -38,6 +39,22 @@ def in_worker():
     return getattr(_local, "worker", False) or forked.active() is not None
 
 
+@dataclasses.dataclass
+class Continuation:
+    """How a render loop's twin may go on into the next loop (Workers.twin).
+
+    token: () -> what must be equal for the twin's state to be the
+    caller's (None: never); state: the objects the twin's next loop starts
+    from (its copies); resume: module-level function (state..., args...) ->
+    the new state, run in the twin; args: picklable, sent to it; complete:
+    set by the loop when it ran to its end."""
+    token: object
+    state: tuple
+    resume: object
+    args: tuple
+    complete: bool = False
+
+
 def _mark_worker():
     _local.worker = True
 
@@ -52,6 +69,7 @@ class Workers:
         self.max_range = max(1, int(max_range))
         self.processes = bool(processes) and forked.AVAILABLE and self.threads == 2
         self._balance = {}
+        self._parked = None             # (Twin, token) waiting for the next loop
         self._pool = (ThreadPoolExecutor(self.threads, initializer=_mark_worker)
                       if self.threads > 1 else None)
 
@@ -112,28 +130,59 @@ class Workers:
         return holder[0]
 
     @contextlib.contextmanager
-    def twin(self, n):
+    def twin(self, n, keep=None):
         """A render loop over images of n pixels, run by two processes (see
         core/forked.py) when ``processes`` is on and n makes two ranges.
         Yields True in the leading process (the caller's), False in the
-        twin, which must do nothing but compute (no reports, no stopping):
-        it is ended when the block ends, in both."""
+        twin, which must do nothing but compute (no reports, no stopping).
+
+        keep: a Continuation: when the loop has run to its end
+        (``keep.complete``), the twin is not ended but parked with
+        ``keep.state``, and the next loop whose ``keep.token()`` equals the
+        parked one resumes it (``keep.resume(*state, *keep.args)`` in the
+        twin) instead of forking again: the page faults that follow a fork
+        are paid once per animation, not once per frame. Otherwise the twin
+        is ended when the block ends, in both processes."""
         outer = forked.active()
         if outer is not None:       # a loop inside a twin's loop: its roles hold
             yield outer.leader
             return
         use = self.processes and self._pool is not None and len(self.ranges(n)) == 2 and not in_worker()
-        twin = forked.Twin.start(balance=self._balance) if use else None
+        twin = None
+        parked, self._parked = self._parked, None
+        if parked is not None:
+            if use and keep is not None and parked[1] is not None and parked[1] == keep.token() \
+                    and parked[0].resume(keep.resume, keep.args):
+                twin = parked[0]
+            else:
+                parked[0].end()
+        if twin is None and use:
+            twin = forked.Twin.start(balance=self._balance)
         if twin is None:
             yield True
             return
+        completed = False
         try:
             yield twin.leader
+            completed = keep is not None and keep.complete
         finally:
             self._balance = dict(twin.balance)     # where to split the passes of the next loop
-            twin.end()      # the twin exits here
+            if completed and not twin.leader:
+                twin.serve(keep.state)      # never returns
+            if completed and twin.pid is not None:
+                twin.park()
+                self._parked = (twin, keep.token())
+            else:
+                twin.end()      # the twin exits here
+
+    def end_twin(self):
+        """End a twin parked for the next loop (Workers.twin)."""
+        if self._parked is not None:
+            self._parked[0].end()
+            self._parked = None
 
     def close(self):
+        self.end_twin()
         if self._pool is not None:
             self._pool.shutdown(wait=False)
             self._pool = None

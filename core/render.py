@@ -1,5 +1,6 @@
 """Rendering one frame: settings in, a Film out, with progress and cancel hooks."""
 
+import copy
 import dataclasses
 import time
 from dataclasses import dataclass
@@ -9,7 +10,7 @@ import numpy as np
 from .camera import PixelFilter
 from .film import Film
 from .integrators.path import camera_pass
-from .parallel import concat_rows, release_free_memory
+from .parallel import Continuation, concat_rows, release_free_memory
 from .restir.accumulation import STILL
 
 
@@ -49,7 +50,10 @@ def render_frame(ctx, settings, frame=0, on_sample=None, should_stop=None):
     pixel_filter = PixelFilter(scene.filter_width)
     start = time.perf_counter()
     n = w * h
-    with ctx.workers.twin(n) as lead:   # a second process on Linux (core/forked.py)
+    # A second process on Linux (core/forked.py), kept for the next frame of
+    # an animation if the scene changed only its camera.
+    keep = Continuation(lambda: _continuation_token(ctx), (ctx,), _resume_path, (scene.camera, settings, frame))
+    with ctx.workers.twin(n, keep) as lead:
         for s in range(settings.samples):
             color = np.zeros((n, 3), np.float32)
             depth = np.zeros(n, np.float32)
@@ -68,6 +72,7 @@ def render_frame(ctx, settings, frame=0, on_sample=None, should_stop=None):
             film.add(color, depth=depth, normal=normal, albedo=albedo, alpha=alpha)
             if lead and on_sample is not None:
                 on_sample(film, time.perf_counter() - start)
+        keep.complete = True
     return film
 
 
@@ -94,7 +99,11 @@ def render_restir(ctx, restir, settings, frame, frames=1, fresh=False, on_frame=
     settle = settle_frames(frames) if fresh else 0
     result = None
     scene = ctx.scene
-    with ctx.workers.twin(scene.width * scene.height) as lead:     # (core/forked.py)
+    # The twin process (core/forked.py) goes on into the next frame's loop of
+    # an animation if the scene changed only its camera since.
+    keep = Continuation(lambda: _continuation_token(ctx, restir), (ctx, restir), _resume_restir,
+                        (scene.camera, settings, frame, frames, fresh))
+    with ctx.workers.twin(scene.width * scene.height, keep) as lead:
         for i in range(max(1, frames)):
             if lead and should_stop is not None and should_stop():
                 break
@@ -111,7 +120,47 @@ def render_restir(ctx, restir, settings, frame, frames=1, fresh=False, on_frame=
             result = restir.render_frame(ctx, run, frame * 65536 + i)
             if lead and on_frame is not None:
                 on_frame(i, result)
+        else:
+            keep.complete = True
     if not restir.keep_history:
         restir.reset()          # the result keeps the images it shows
         release_free_memory()
     return result
+
+
+def _continuation_token(ctx, restir=None):
+    """What a parked twin's copies must share with (ctx, restir) to go on:
+    the same acceleration structure and lights, a scene whose change
+    counters (Scene.versions: geometry, lighting) and image settings are
+    unchanged, and the same ReSTIR state (frames rendered, history); the
+    camera may differ (it is sent). None (never) for scenes without change
+    counters."""
+    s = ctx.scene
+    if s.versions is None:
+        return None
+    token = (id(ctx.accel), id(ctx.lights), ctx.eps, tuple(s.versions), s.width, s.height,
+             s.filter_width, getattr(s, "film_transparent", None))
+    if restir is not None:
+        token += (id(restir), restir.frames, id(restir.history), restir.keep_history)
+    return token
+
+
+def _with_camera(ctx, camera):
+    scene = copy.copy(ctx.scene)
+    scene.camera = camera
+    return dataclasses.replace(ctx, scene=scene)
+
+
+def _resume_path(ctx, camera, settings, frame):
+    """(in the twin) The next render_frame from the twin's copies."""
+    ctx = _with_camera(ctx, camera)
+    render_frame(ctx, settings, frame)
+    return (ctx,)
+
+
+def _resume_restir(ctx, restir, camera, settings, frame, frames, fresh):
+    """(in the twin) The next loop of render_restir from the twin's copies,
+    with the leader's new camera; returns the state for the loop after."""
+    ctx = _with_camera(ctx, camera)
+    render_restir(ctx, restir, settings, frame, frames, fresh)
+    return ctx, restir

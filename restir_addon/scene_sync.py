@@ -144,6 +144,11 @@ class SceneSync(SceneReader, SceneApplier):
     def accel(self):
         return self._accel
 
+    def end_twin(self):
+        """End the twin process the workers keep for the next frame."""
+        if self._workers is not None:
+            self._workers.end_twin()
+
     def _free_scene(self):
         if self._accel is not None:
             self._accel.close()

@@ -52,11 +52,14 @@ def clear(*_args):
 
 @bpy.app.handlers.persistent
 def job_ended(scene, *_args):
-    """A render job ended: free the exported scenes unless Persistent Data is on."""
+    """A render job ended: free the exported scenes unless Persistent Data is
+    on; with it, end the twin process kept for the next frame (core/forked.py)."""
     for key, stream in _streams.items():
         target = bpy.data.scenes.get(key[0])
         if target is None or not target.render.use_persistent_data:
             stream.frame_scene.release()
+        else:
+            stream.frame_scene.end_twin()
 
 
 def stream_count():
