@@ -14,7 +14,6 @@ pytestmark = pytest.mark.skipif(not forked.AVAILABLE, reason="the twin process i
 
 
 def animation(tmp_path, mode, persistent):
-    import bpy
     scene = fresh(128, 72, samples=1, mode=mode)
     scene.restir_gi.warmup_frames = 2
     scene.render.use_persistent_data = persistent
