@@ -314,21 +314,23 @@ def accumulate(prev, footprint, direct, indirect, albedo, normal, cap, alpha=1.0
     if prev is None or cap <= 1 or footprint is None:
         return Accumulation(new)
     wts = footprint.weights
-    taps = [k for k in range(wts.shape[1]) if wts[:, k].any()]
-    # The weighted taps, clipped to the range of the inner 2x2 taps
-    # (Catmull-Rom's negative lobes overshoot at edges).
-    hist = lo = hi = None
+    taps = [k for k in range(wts.shape[1]) if wts[:, k].any()]     # (skipping zero taps adds nothing)
+    hist = None
     for k in taps:
         v = gather(prev.data, footprint.taps[:, k])
-        if k < 4:   # (a read from matching inner taps lies in their range anyway)
-            lo = v.copy() if lo is None else np.minimum(lo, v, out=lo)
-            hi = v.copy() if hi is None else np.maximum(hi, v, out=hi)
         v *= wts[:, k, None]
         hist = v if hist is None else np.add(hist, v, out=hist)
     if hist is None:
         return Accumulation(new)
-    if len(taps) > 4:
-        np.clip(hist, lo, hi, out=hist)
+    # Rows read through Catmull-Rom's outer taps, clipped to the range of
+    # their own inner 2x2 taps (its negative lobes overshoot at edges). Per
+    # row: whether a row is clipped, and to what, must not depend on the
+    # other rows of the range (core/parallel.py), and rows that start over
+    # (zero weights) or read bilinearly are left alone.
+    sharp = np.nonzero((wts[:, 4:] != 0).any(axis=1))[0]
+    if len(sharp):
+        inner = [gather(prev.data, footprint.taps[sharp, k]) for k in range(4)]
+        hist[sharp] = np.clip(hist[sharp], np.minimum.reduce(inner), np.maximum.reduce(inner))
     if refined is not None and not footprint.exact:
         h_seen = hist[:, 14:17]
         over = luminance(h_seen) > refined.ceiling
