@@ -113,6 +113,7 @@ class Footprint:
     taps: np.ndarray        # (N, 16) int64 pixel indices (0 where unused)
     weights: np.ndarray     # (N, 16) float32 (Catmull-Rom's can be negative)
     exact: bool = False     # every pixel is where it was (a still view of a still scene)
+    window: bool = False    # taps are the 4x4 window around each reprojected centre (a moving view)
 
     @property
     def found(self):
@@ -175,6 +176,7 @@ def previous_pixels(scene, gb, history, motion=None, still_scene=False, edges=No
         out.weights[:, 0] = 1.0
         out.exact = True
         return out
+    out.window = True
     centre = np.stack([pix % w, pix // w], axis=1).astype(np.float32) + 0.5
     idx = gb.index
     miss = np.nonzero(~gb.valid)[0]
@@ -320,17 +322,29 @@ def accumulate(prev, footprint, direct, indirect, albedo, normal, cap, alpha=1.0
         v = gather(prev.data, footprint.taps[:, k])
         v *= wts[:, k, None]
         hist = v if hist is None else np.add(hist, v, out=hist)
-    if hist is None:
-        return Accumulation(new)
-    # Rows read through Catmull-Rom's outer taps, clipped to the range of
-    # their own inner 2x2 taps (its negative lobes overshoot at edges). Per
-    # row: whether a row is clipped, and to what, must not depend on the
-    # other rows of the range (core/parallel.py), and rows that start over
-    # (zero weights) or read bilinearly are left alone.
-    sharp = np.nonzero((wts[:, 4:] != 0).any(axis=1))[0]
-    if len(sharp):
-        inner = [gather(prev.data, footprint.taps[sharp, k]) for k in range(4)]
-        hist[sharp] = np.clip(hist[sharp], np.minimum.reduce(inner), np.maximum.reduce(inner))
+    if not footprint.window:    # a still view (each pixel's own history), or given taps
+        if hist is None:
+            return Accumulation(new)
+    else:
+        # A moving view: every row is clipped to the range of its inner 2x2
+        # taps. Reads through Catmull-Rom's outer taps overshoot at edges
+        # (its negative lobes), and rows whose taps were all rejected
+        # (disocclusions, trails of moving objects: zero weights) take the
+        # lower end of that range (the darkest history around where they
+        # were) instead of starting over, which left black speckle behind the
+        # quick start's sliding box (bench/quick_start.py: black 0.31 and
+        # 0.44 % of frames 12 and 24 against 0.63 and 0.91). Decided per row:
+        # a row must not depend on the other rows of its pass's range
+        # (core/parallel.py); the clip was applied to a whole range when any
+        # of its rows read outer taps, so images differed with the workers.
+        if hist is None:
+            hist = np.zeros_like(new)
+        lo = hi = None
+        for k in range(4):
+            v = gather(prev.data, footprint.taps[:, k])
+            lo = v.copy() if lo is None else np.minimum(lo, v, out=lo)
+            hi = v if hi is None else np.maximum(hi, v, out=hi)
+        np.clip(hist, lo, hi, out=hist)
     if refined is not None and not footprint.exact:
         h_seen = hist[:, 14:17]
         over = luminance(h_seen) > refined.ceiling
