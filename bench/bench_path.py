@@ -139,7 +139,8 @@ def main():
     keys = ("export", "trace", "shade", "write")
     total = med([s["total"] for s in splits])
     print("frame time split (s)     " + ", ".join(f"{k} {med([s[k] for s in splits]):.3f}" for k in keys)
-          + f", total render call {total:.3f}")
+          + f", total render call {total:.3f} (trace: the rays of this process; with a twin "
+          "process rendering half of each pass, core/forked.py, its rays are not counted)")
     del addon
 
 
