@@ -32,6 +32,7 @@ import numpy as np
 
 from .. import samplers
 from ..interaction import surface_hits
+from ..parallel import concat_rows
 from ..rows import gather
 from ..sampling import dot, luminance
 from .adaptive_direct import neighbourhood_range
@@ -82,6 +83,20 @@ def mean_seen_directly(ctx, seed, frame, pixel_filter, pixels, samples):
     return le.reshape(len(pixels), samples, 3).mean(axis=1, dtype=np.float64).astype(np.float32)
 
 
+def _mean_seen_on_workers(ctx, seed, frame, pixel_filter, pixels, samples):
+    """mean_seen_directly with the rays split over the context's workers
+    (the edge pixels of a sunlit courtyard or a room of small lamps take up
+    to one ray per image pixel): each range of rays takes the pixels whose
+    first ray falls in it."""
+    samples = max(1, int(samples))
+
+    def part(a, b):
+        lo, hi = -(-a // samples), -(-b // samples)
+        return mean_seen_directly(ctx, seed, frame, pixel_filter, pixels[lo:hi], samples)
+
+    return concat_rows(ctx.workers.map(part, len(pixels) * samples))
+
+
 def _sides(scene, d, hits):
     """What seen_directly reads of the surfaces hit, (triangle, front side)
     per hit, and the rows that hit: no shading frames (interaction.surface_hits)."""
@@ -119,7 +134,7 @@ def refine_edges(ctx, seed, frame, pixel_filter, seen, lum_direct, samples):
     if len(edges):
         # At most about one extra ray per pixel of the image in all.
         samples = min(samples, max(2, len(seen) // len(edges)))
-        seen[edges] = mean_seen_directly(ctx, seed, frame, pixel_filter, edges, samples)
+        seen[edges] = _mean_seen_on_workers(ctx, seed, frame, pixel_filter, edges, samples)
         own[edges[bright]] = True
         lum[edges] = luminance(seen[edges])
     # A pixel whose ray missed a moving emitter can still hold part of it
