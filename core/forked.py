@@ -86,15 +86,22 @@ class Twin:
             return None
         (p2c_r, p2c_w), (c2p_r, c2p_w) = pipes
         if pid == 0:
-            twin.leader = False
-            os.close(p2c_w)
-            os.close(c2p_r)
-            twin._pipes = (p2c_r, c2p_w)                 # read from, write to
-            twin._files = (files[2:], files[:2])         # mine, theirs
-            signal.signal(signal.SIGINT, signal.SIG_DFL)
-            _die_with_parent()
-            if on_child is not None:
-                on_child()
+            # Nothing may raise out of here in the child: it would unwind
+            # through the caller's stack (Blender's render code) in a copy of
+            # the process.
+            try:
+                twin.leader = False
+                os.close(p2c_w)
+                os.close(c2p_r)
+                twin._pipes = (p2c_r, c2p_w)                 # read from, write to
+                twin._files = (files[2:], files[:2])         # mine, theirs
+                if threading.current_thread() is threading.main_thread():
+                    signal.signal(signal.SIGINT, signal.SIG_DFL)
+                _die_with_parent()
+                if on_child is not None:
+                    on_child()
+            except BaseException:
+                os._exit(1)
         else:
             twin.pid = pid
             os.close(p2c_r)

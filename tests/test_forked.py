@@ -292,3 +292,26 @@ def test13_a_stopped_loop_or_another_kind_of_loop_does_not_resume_the_twin(conte
     render_restir(ctx, restir, settings, 2, 1)          # a ReSTIR loop after path tracing: a new twin
     assert parked_pid(two) not in (None, pt) and gone(pt)
     two.workers.end_twin()
+
+
+def test14_a_loop_run_by_another_thread_than_the_main_one():
+    """Blender renders F12 in a job thread: the twin forks from it (signals
+    can only be set from the main thread) and the loop is whole."""
+    import threading
+    workers = Workers(2)
+    try:
+        got = {}
+
+        def job():
+            with workers.twin(N) as lead:
+                pids = np.concatenate(workers.map(lambda a, b: np.full(b - a, os.getpid()), N))
+                got["ok"] = lead
+            got["pids"] = pids
+
+        t = threading.Thread(target=job)
+        t.start()
+        t.join(60)
+        assert got.get("ok") is True and got["pids"][0] == os.getpid() and got["pids"][-1] != os.getpid()
+        assert gone(int(got["pids"][-1]))
+    finally:
+        workers.close()
