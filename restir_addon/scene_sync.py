@@ -27,6 +27,9 @@ class SceneSync(SceneReader, SceneApplier):
     """Blender-side reading state, the queue of changes, and the core scene
     (``scene``, ``accel``, ``context``) they were applied to."""
 
+    # Render loops may fork a twin process for the second core (core/forked.py).
+    twin_process = True
+
     def __init__(self, threads=None):
         self.work = Work()
         self.warnings = Warnings()

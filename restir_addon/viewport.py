@@ -88,6 +88,10 @@ class ViewportSession(SceneSync):
     frames without edits before moved objects rejoin the static Embree scene.
     """
 
+    # The viewport's passes stay on threads: its frames are interrupted by
+    # edits, and it runs in Blender's window process.
+    twin_process = False
+
     def __init__(self, mode="RESTIR_BIASED", scale=DEFAULT_SCALE, samples=DEFAULT_SAMPLES,
                  idle_frames=DEFAULT_IDLE_FRAMES, frame_budget=DEFAULT_FRAME_BUDGET,
                  settle_frames=DEFAULT_SETTLE_FRAMES, max_bounces=4, seed=0, restir=None,

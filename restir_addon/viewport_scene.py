@@ -109,6 +109,6 @@ class SceneApplier:
             lights.lights = scene.lights
         self._scene = scene
         if self._workers is None:
-            self._workers = Workers(self.threads)
+            self._workers = Workers(self.threads, processes=self.twin_process)
         self._ctx = RenderContext(scene, transparency.wrap(self._accel, scene), lights, eps, self._workers)
 
