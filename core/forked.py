@@ -13,8 +13,11 @@ image-wide indices). At every whole-image pass (``Workers.map``) each computes
 its half of the pixel ranges and the two exchange their results, so both hold
 the whole pass and go on alike; the serial work between passes is done by
 both. Only the parent (the leader) reports progress and decides to stop; when
-the loop ends the child is killed. One fork per loop: the copy-on-write page
-faults that follow a fork are paid once, not at every pass.
+the loop ends the child is killed, or parked (``serve``) until the next loop
+resumes it (the next frame of an animation whose camera alone moved:
+Workers.twin's Continuation). The copy-on-write page faults that follow a
+fork are paid once per fork, not at every pass. Each pass is split where the
+two processes took equal time on it the last times.
 
 Exchange: each side writes a pass's results (pickle protocol 5, arrays as
 raw buffers) into an anonymous memory file of its own, two of them used in
@@ -70,7 +73,7 @@ class Twin:
         self._pipes = None
 
     @staticmethod
-    def start(on_child=None, balance=None):
+    def start(balance=None):
         """Fork; returns the Twin in both processes (None if it could not fork).
         balance: the passes' splits learnt by an earlier loop."""
         twin = Twin()
@@ -98,8 +101,6 @@ class Twin:
                 if threading.current_thread() is threading.main_thread():
                     signal.signal(signal.SIGINT, signal.SIG_DFL)
                 _die_with_parent()
-                if on_child is not None:
-                    on_child()
             except BaseException:
                 os._exit(1)
         else:
