@@ -3,7 +3,7 @@
     .venv/bin/python bench/bench_restir.py [--blend ...] [--bounces 2] [--frames 12] [--scale 1]
 
 For one worker, two worker threads, and two workers of which the second is a
-child process forked per pass (core/forked.py, the default on Linux): median
+twin process (core/forked.py, the default for render loops on Linux): median
 ms per pass over --frames frames of a warmed-up static view
 (ReSTIRGI.last_timings: wall time for the G-buffer and the whole frame,
 summed worker time for the passes the workers run; with a child process only
@@ -45,7 +45,7 @@ def main():
     print("| workers | " + " | ".join(PASSES) + " | PT 1 spp | ReSTIR / PT |")
     print("|---|" + "---:|" * (len(PASSES) + 2))
     totals = {}
-    for label, threads, processes in (("1", 1, False), ("2 threads", 2, False), ("2 (thread + child)", 2, True)):
+    for label, threads, processes in (("1", 1, False), ("2 threads", 2, False), ("2 (twin process)", 2, True)):
         ctx = RenderContext.build(scene, threads=threads, processes=processes)
         restir = ReSTIRGI()
         settings = ReSTIRSettings(mode=args.mode, max_bounces=args.bounces, seed=1)
@@ -53,13 +53,17 @@ def main():
             restir.render_frame(ctx, settings, f)
         rows = {name: [] for name in PASSES}
         pt = []
-        for f in range(4, 4 + args.frames):
-            restir.render_frame(ctx, settings, f)
-            for name in PASSES:
-                rows[name].append(restir.last_timings[name])
-            t0 = time.perf_counter()
-            render_frame(ctx, RenderSettings(samples=1, max_bounces=args.bounces, seed=f))
-            pt.append(time.perf_counter() - t0)
+        # One render loop over the timed frames: with processes, a twin
+        # process computes its share of every pass (core/forked.py); it
+        # prints nothing and ends with the block.
+        with ctx.workers.twin(scene.width * scene.height):
+            for f in range(4, 4 + args.frames):
+                restir.render_frame(ctx, settings, f)
+                for name in PASSES:
+                    rows[name].append(restir.last_timings[name])
+                t0 = time.perf_counter()
+                render_frame(ctx, RenderSettings(samples=1, max_bounces=args.bounces, seed=f))
+                pt.append(time.perf_counter() - t0)
         ctx.close()
         med = {name: statistics.median(v) * 1000 for name, v in rows.items()}
         t_pt = statistics.median(pt) * 1000
