@@ -19,8 +19,8 @@ long enough for threads) stay on threads.
 
 import contextlib
 import ctypes
-import dataclasses
 import ctypes.util
+import dataclasses
 import os
 import threading
 from concurrent.futures import ThreadPoolExecutor, wait

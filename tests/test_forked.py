@@ -20,6 +20,14 @@ pytestmark = pytest.mark.skipif(not forked.AVAILABLE, reason="fork and memfd_cre
 N = 4 * MIN_PIXELS_PER_WORKER       # two ranges
 
 
+@pytest.fixture
+def workers():
+    """Two workers (a twin process in their loops), closed after the test."""
+    w = Workers(2)
+    yield w
+    w.close()
+
+
 def gone(pid):
     try:
         os.kill(pid, 0)
@@ -28,92 +36,72 @@ def gone(pid):
     return False
 
 
-def test01_passes_are_whole_in_the_parent_and_rows_written_in_place_arrive():
-    workers = Workers(2)
-    try:
-        seen = np.zeros(N, np.int64)
-        with workers.twin(N) as lead:
-            assert forked.active() is not None
-            pids = np.concatenate(workers.map(lambda a, b: np.full(b - a, os.getpid()), N))
+def test01_passes_are_whole_in_the_parent_and_rows_written_in_place_arrive(workers):
+    seen = np.zeros(N, np.int64)
+    with workers.twin(N) as lead:
+        assert forked.active() is not None
+        pids = np.concatenate(workers.map(lambda a, b: np.full(b - a, os.getpid()), N))
 
-            def fill(a, b):
-                seen[a:b] = np.arange(a, b) * 3
-                return np.arange(a, b)
-
-            got = workers.map_into(fill, N, written=(seen,))
-        assert lead and forked.active() is None
-        assert np.array_equal(got, np.arange(N)) and np.array_equal(seen, np.arange(N) * 3)
-        child = int(pids[-1])
-        assert pids[0] == os.getpid() and child != os.getpid()     # the second half came from the child
-        assert gone(child)
-    finally:
-        workers.close()
-
-
-def test02_an_exception_in_the_childs_ranges_is_raised_in_the_parent():
-    workers = Workers(2)
-    try:
-        def fn(a, b):
-            if a > 0:
-                raise ValueError(f"range {a} failed")
-            return b - a
-
-        with pytest.raises(ValueError, match="failed"):
-            with workers.twin(N):
-                workers.map(fn, N)
-        assert forked.active() is None
-    finally:
-        workers.close()
-
-
-def test03_a_child_that_dies_leaves_the_parent_to_finish_alone():
-    workers = Workers(2)
-    try:
-        def fn(a, b):
-            if a > 0 and forked.active() is not None and not forked.active().leader:
-                os._exit(3)      # dies without a word
+        def fill(a, b):
+            seen[a:b] = np.arange(a, b) * 3
             return np.arange(a, b)
 
+        got = workers.map_into(fill, N, written=(seen,))
+    assert lead and forked.active() is None
+    assert np.array_equal(got, np.arange(N)) and np.array_equal(seen, np.arange(N) * 3)
+    child = int(pids[-1])
+    assert pids[0] == os.getpid() and child != os.getpid()     # the second half came from the child
+    assert gone(child)
+
+
+def test02_an_exception_in_the_childs_ranges_is_raised_in_the_parent(workers):
+    def fn(a, b):
+        if a > 0:
+            raise ValueError(f"range {a} failed")
+        return b - a
+
+    with pytest.raises(ValueError, match="failed"):
         with workers.twin(N):
-            first = np.concatenate(workers.map(fn, N))
-            second = np.concatenate(workers.map(fn, N))     # alone from here on
-        assert np.array_equal(first, np.arange(N)) and np.array_equal(second, np.arange(N))
-    finally:
-        workers.close()
+            workers.map(fn, N)
+    assert forked.active() is None
 
 
-def test04_an_exception_in_the_parent_ends_the_child():
-    workers = Workers(2)
-    try:
-        pids = []
+def test03_a_child_that_dies_leaves_the_parent_to_finish_alone(workers):
+    def fn(a, b):
+        if a > 0 and forked.active() is not None and not forked.active().leader:
+            os._exit(3)      # dies without a word
+        return np.arange(a, b)
 
-        def fn(a, b):
-            pids.append(os.getpid())
-            return np.full(b - a, os.getpid())
-
-        with pytest.raises(KeyError):
-            with workers.twin(N):
-                child = int(np.concatenate(workers.map(fn, N))[-1])
-                raise KeyError("cancelled")
-        assert gone(child) and forked.active() is None
-    finally:
-        workers.close()
+    with workers.twin(N):
+        first = np.concatenate(workers.map(fn, N))
+        second = np.concatenate(workers.map(fn, N))     # alone from here on
+    assert np.array_equal(first, np.arange(N)) and np.array_equal(second, np.arange(N))
 
 
-def test05_nested_passes_run_whole_on_each_side():
-    workers = Workers(2)
-    try:
-        def inner(a, b):
-            return np.arange(a, b)
+def test04_an_exception_in_the_parent_ends_the_child(workers):
+    pids = []
 
-        def outer(a, b):
-            return np.concatenate(workers.map(inner, 3 * MIN_PIXELS_PER_WORKER))[a % 7:a % 7 + 1]
+    def fn(a, b):
+        pids.append(os.getpid())
+        return np.full(b - a, os.getpid())
 
+    with pytest.raises(KeyError):
         with workers.twin(N):
-            got = workers.map(outer, N)
-        assert [int(g[0]) for g in got] == [0, (N // 2) % 7]
-    finally:
-        workers.close()
+            child = int(np.concatenate(workers.map(fn, N))[-1])
+            raise KeyError("cancelled")
+    assert gone(child) and forked.active() is None
+
+
+def test05_nested_passes_run_whole_on_each_side(workers):
+    def inner(a, b):
+        return np.arange(a, b)
+
+    def outer(a, b):
+        return np.concatenate(workers.map(inner, 3 * MIN_PIXELS_PER_WORKER))[a % 7:a % 7 + 1]
+
+    with workers.twin(N):
+        got = workers.map(outer, N)
+    assert [int(g[0]) for g in got] == [0, (N // 2) % 7]
 
 
 def test06_no_twin_without_processes_or_for_large_images():
@@ -196,38 +184,31 @@ def test09_other_threads_of_the_process_do_not_take_part():
         other.close()
 
 
-def test10_a_loop_inside_a_twin_loop_keeps_its_roles():
-    workers = Workers(2)
-    try:
-        with workers.twin(N) as lead:
-            with workers.twin(N) as inner:
-                roles = (lead, inner)
-                child = int(np.concatenate(workers.map(lambda a, b: np.full(b - a, os.getpid()), N))[-1])
-        assert roles == (True, True) and child != os.getpid() and gone(child)
-    finally:
-        workers.close()
+def test10_a_loop_inside_a_twin_loop_keeps_its_roles(workers):
+    with workers.twin(N) as lead:
+        with workers.twin(N) as inner:
+            roles = (lead, inner)
+            child = int(np.concatenate(workers.map(lambda a, b: np.full(b - a, os.getpid()), N))[-1])
+    assert roles == (True, True) and child != os.getpid() and gone(child)
 
 
-def test11_the_split_follows_where_the_time_goes():
+def test11_the_split_follows_where_the_time_goes(workers):
     """Rows of the upper half cost more: after a few passes the parent (lower
     half) takes more than half of the rows, and every pass is still whole."""
     import time as _time
-    workers = Workers(2)
-    try:
-        def fn(a, b):
-            heavy = max(0, b - max(a, N // 2))
-            _time.sleep(2e-5 * (heavy * 4 + (b - a)))
-            return np.full(b - a, os.getpid())
 
-        with workers.twin(N):
-            shares = []
-            for _ in range(6):
-                pids = np.concatenate(workers.map(fn, N))
-                assert len(pids) == N
-                shares.append(float((pids == os.getpid()).mean()))
-        assert shares[0] == 0.5 and shares[-1] > 0.6, shares
-    finally:
-        workers.close()
+    def fn(a, b):
+        heavy = max(0, b - max(a, N // 2))
+        _time.sleep(2e-5 * (heavy * 4 + (b - a)))
+        return np.full(b - a, os.getpid())
+
+    with workers.twin(N):
+        shares = []
+        for _ in range(6):
+            pids = np.concatenate(workers.map(fn, N))
+            assert len(pids) == N
+            shares.append(float((pids == os.getpid()).mean()))
+    assert shares[0] == 0.5 and shares[-1] > 0.6, shares
 
 
 def moving(scene, f, versions=(0, 0)):
@@ -294,24 +275,20 @@ def test13_a_stopped_loop_or_another_kind_of_loop_does_not_resume_the_twin(conte
     two.workers.end_twin()
 
 
-def test14_a_loop_run_by_another_thread_than_the_main_one():
+def test14_a_loop_run_by_another_thread_than_the_main_one(workers):
     """Blender renders F12 in a job thread: the twin forks from it (signals
     can only be set from the main thread) and the loop is whole."""
     import threading
-    workers = Workers(2)
-    try:
-        got = {}
+    got = {}
 
-        def job():
-            with workers.twin(N) as lead:
-                pids = np.concatenate(workers.map(lambda a, b: np.full(b - a, os.getpid()), N))
-                got["ok"] = lead
-            got["pids"] = pids
+    def job():
+        with workers.twin(N) as lead:
+            pids = np.concatenate(workers.map(lambda a, b: np.full(b - a, os.getpid()), N))
+            got["ok"] = lead
+        got["pids"] = pids
 
-        t = threading.Thread(target=job)
-        t.start()
-        t.join(60)
-        assert got.get("ok") is True and got["pids"][0] == os.getpid() and got["pids"][-1] != os.getpid()
-        assert gone(int(got["pids"][-1]))
-    finally:
-        workers.close()
+    t = threading.Thread(target=job)
+    t.start()
+    t.join(60)
+    assert got.get("ok") is True and got["pids"][0] == os.getpid() and got["pids"][-1] != os.getpid()
+    assert gone(int(got["pids"][-1]))
