@@ -166,17 +166,16 @@ def previous_pixels(scene, gb, history, motion=None, still_scene=False, edges=No
     several surfaces read every tap, not only those that saw their own
     surface: their history is the mix they cover, as on a still view."""
     n = len(gb.valid)
-    out = Footprint.none(n)
     if history is None or (history.width, history.height) != (gb.width, gb.height):
-        return out
+        return Footprint.none(n)
     w, h = gb.width, gb.height
     pix = np.arange(gb.offset, gb.offset + n, dtype=np.int64)
     if still_scene and same_view(scene.camera, history.camera):
+        out = Footprint.none(n)
         out.taps[:, 0] = pix    # a still view: every pixel is where it was
         out.weights[:, 0] = 1.0
         out.exact = True
         return out
-    out.window = True
     centre = np.stack([pix % w, pix // w], axis=1).astype(np.float32) + 0.5
     idx = gb.index
     miss = np.nonzero(~gb.valid)[0]
@@ -233,38 +232,49 @@ def previous_pixels(scene, gb, history, motion=None, still_scene=False, edges=No
     # where it was (a pixel on an edge sees both sides over its filter
     # footprint, so the pixel's own last sample need not be like this one).
     # Those 3x3 pixels lie in the window (x is x0 or x0 + 1, y likewise).
+    # Built tap-major, (16, N), and handed out transposed: a column of an
+    # (N, 16) array is written with a stride of 16 items, a pass over the
+    # whole array per tap (the window took as long as the rest of the frame's
+    # shading on a moving view).
+    taps = np.empty((16, n), np.int64)
+    weights = np.zeros((16, n), np.float32)
+    sharp_weights = np.empty((16, n), np.float32)
     seen = np.zeros(n, bool)
     sharp = inside.copy()
-    sharp_weights = np.zeros((n, 16), np.float32)
+    # Per column and per row of the window (four each): the clamped pixel
+    # coordinate, whether it lies in the image, and whether it is within one
+    # pixel of the nearest pixel (the 3x3 of the disocclusion test).
+    cols = {dx: (np.clip(x0 + dx, 0, w - 1), (x0 + dx >= 0) & (x0 + dx < w), np.abs(x0 + dx - x) <= 1)
+            for dx in range(-1, 3)}
+    rows = {dy: (np.clip(y0 + dy, 0, h - 1) * w, (y0 + dy >= 0) & (y0 + dy < h), np.abs(y0 + dy - y) <= 1)
+            for dy in range(-1, 3)}
     for k, (dx, dy) in enumerate(TAPS):
-        xs, ys = x0 + dx, y0 + dy
-        qn = np.clip(ys, 0, h - 1) * w + np.clip(xs, 0, w - 1)
+        (xc, x_in, x_near), (yc, y_in, y_near) = cols[dx], rows[dy]
+        qn = np.add(yc, xc, out=taps[k])
         same, obj_prev = like(qn)
-        seen |= same & (np.abs(xs - x) <= 1) & (np.abs(ys - y) <= 1)
-        keep = same & (xs >= 0) & (xs < w) & (ys >= 0) & (ys < h)
+        seen |= same & x_near & y_near
+        keep = same & x_in & y_in
         if moved:
             # Where a moving object passed, history shows it: no trails.
             moving_prev = np.where(obj_prev >= 0, before[np.maximum(obj_prev, 0)], False)
             keep &= ~((obj_prev != obj) & (moving_now | moving_prev))
-        out.taps[:, k] = qn
         sharp &= keep
-        sharp_weights[:, k] = cr_x[dx + 1] * cr_y[dy + 1]
+        np.multiply(cr_x[dx + 1], cr_y[dy + 1], out=sharp_weights[k])
         if k < 4:
-            out.weights[:, k] = np.where(keep, bilinear[(dx, dy)], 0.0)
+            weights[k] = np.where(keep, bilinear[(dx, dy)], 0.0)
     ok = inside & seen
     sharp &= ok
-    total = out.weights.sum(axis=1)
+    total = (weights[0] + weights[1]) + (weights[2] + weights[3])   # (the only taps weighted yet)
     alone = ok & (total <= 1e-6)
     if moved:                   # the nearest pixel must not be a trail either
         obj_prev = history.object_id[nearest]
         moving_prev = np.where(obj_prev >= 0, before[np.maximum(obj_prev, 0)], False)
         alone &= ~((obj_prev != obj) & (moving_now | moving_prev))
-    out.taps[alone, 0], out.weights[alone] = nearest[alone], 0.0
-    out.weights[alone, 0] = 1.0
+    taps[0, alone], weights[:, alone] = nearest[alone], 0.0
+    weights[0, alone] = 1.0
     total = np.where(alone, 1.0, total)
-    out.weights *= np.where(ok & (total > 1e-6), 1.0 / np.maximum(total, 1e-6), 0.0)[:, None]
-    out.weights = np.where(sharp[:, None], sharp_weights, out.weights)
-    return out
+    weights *= np.where(ok & (total > 1e-6), 1.0 / np.maximum(total, 1e-6), 0.0)
+    return Footprint(taps.T, np.where(sharp, sharp_weights, weights).T, window=True)
 
 
 # Offsets of the 4x4 window from the tap left of and below the centre, inner 2x2 first.
@@ -316,12 +326,19 @@ def accumulate(prev, footprint, direct, indirect, albedo, normal, cap, alpha=1.0
     if prev is None or cap <= 1 or footprint is None:
         return Accumulation(new)
     wts = footprint.weights
-    taps = [k for k in range(wts.shape[1]) if wts[:, k].any()]     # (skipping zero taps adds nothing)
-    hist = None
-    for k in taps:
+    hist = lo = hi = None
+    for k in range(wts.shape[1]):
+        weighted = bool(wts[:, k].any())         # (skipping zero taps adds nothing)
+        bounds = footprint.window and k < 4      # the inner 2x2, for the clip below
+        if not (weighted or bounds):
+            continue
         v = gather(prev.data, footprint.taps[:, k])
-        v *= wts[:, k, None]
-        hist = v if hist is None else np.add(hist, v, out=hist)
+        if bounds:
+            lo = v.copy() if lo is None else np.minimum(lo, v, out=lo)
+            hi = v.copy() if hi is None else np.maximum(hi, v, out=hi)
+        if weighted:
+            v *= wts[:, k, None]
+            hist = v if hist is None else np.add(hist, v, out=hist)
     if not footprint.window:    # a still view (each pixel's own history), or given taps
         if hist is None:
             return Accumulation(new)
@@ -339,11 +356,6 @@ def accumulate(prev, footprint, direct, indirect, albedo, normal, cap, alpha=1.0
         # of its rows read outer taps, so images differed with the workers.
         if hist is None:
             hist = np.zeros_like(new)
-        lo = hi = None
-        for k in range(4):
-            v = gather(prev.data, footprint.taps[:, k])
-            lo = v.copy() if lo is None else np.minimum(lo, v, out=lo)
-            hi = v if hi is None else np.maximum(hi, v, out=hi)
         np.clip(hist, lo, hi, out=hist)
     if refined is not None and not footprint.exact:
         h_seen = hist[:, 14:17]
