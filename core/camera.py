@@ -178,6 +178,6 @@ class PixelFilter:
         """(N, 2) offsets from the pixel centre for uniforms u (N, 2)."""
         if self.dist is None:
             return np.zeros_like(u)
-        x, _ = self.dist.sample_continuous(u[:, 0])
-        y, _ = self.dist.sample_continuous(u[:, 1])
+        x = self.dist.sample_point(u[:, 0])
+        y = self.dist.sample_point(u[:, 1])
         return (np.stack([x, y], axis=1) - 0.5) * self.width

@@ -183,9 +183,46 @@ class Distribution1D:
         cdf[-1] = 1.0
         self.cdf = cdf
 
+    # Guide table (the cutpoint method): cells of [0, 1) by a power of two
+    # (u * cells is exact), each holding the first bin a u in it can fall
+    # in; a step or two along the cdf finishes the search. Cells that span
+    # more bins (bins much narrower than a cell: the pixel filter's tails)
+    # send their rows to the binary search. The same index as
+    # np.searchsorted for every u in [0, 1): 57,600 pixel-filter samples
+    # took 2 ms of binary search per axis.
+    GUIDE_STEPS = 1
+
+    def _guide(self):
+        if getattr(self, "_guide_table", None) is None:
+            cells = 1 << int(min(16, max(10, np.ceil(np.log2(16 * self.count)))))
+            lo = np.arange(cells, dtype=np.float64) / cells
+            first = np.searchsorted(self.cdf, lo, side="right") - 1
+            last = np.searchsorted(self.cdf, lo + 1.0 / cells, side="left") - 1
+            crowded = (last - first) > self.GUIDE_STEPS
+            self._guide_table = (cells, first.astype(np.intp), crowded, bool(crowded.any()),
+                                 np.append(self.cdf, np.inf))
+        return self._guide_table
+
+    def find(self, u):
+        """np.searchsorted(self.cdf, u, side="right") - 1 for u (N,)."""
+        u = np.asarray(u)
+        if len(u) == 0 or not (u.min() >= 0 and u.max() < 1):     # (NaN fails both)
+            return np.searchsorted(self.cdf, u, side="right") - 1
+        cells, first, crowded, any_crowded, cdf = self._guide()
+        u64 = u.astype(np.float64)
+        cell = (u64 * cells).astype(np.intp)
+        idx = first[cell]
+        for _ in range(self.GUIDE_STEPS):
+            idx += cdf[idx + 1] <= u64
+        if any_crowded:
+            rows = np.flatnonzero(crowded[cell])
+            if len(rows):
+                idx[rows] = np.searchsorted(self.cdf, u[rows], side="right") - 1
+        return idx
+
     def sample_discrete(self, u):
         """Index of the chosen item and the u re-stretched to [0, 1) inside it."""
-        idx = np.searchsorted(self.cdf, u, side="right") - 1
+        idx = self.find(u)
         idx = np.clip(idx, 0, self.count - 1)
         lo = self.cdf[idx]
         width = self.cdf[idx + 1] - lo
@@ -197,3 +234,8 @@ class Distribution1D:
         idx, frac = self.sample_discrete(u)
         x = (idx + frac) / self.count
         return x.astype(np.float32), (self.pmf[idx] * self.count).astype(np.float32)
+
+    def sample_point(self, u):
+        """sample_continuous's point alone."""
+        idx, frac = self.sample_discrete(u)
+        return ((idx + frac) / self.count).astype(np.float32)

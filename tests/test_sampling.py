@@ -166,6 +166,31 @@ def test12_distribution_continuous(rng):
     assert ChiSquareTest(lambda n: pts, pdf, dom, res=(52, 1), sample_count=N).run()
 
 
+
+@pytest.mark.parametrize("weights", [
+    "filter", [1.0], [0.0, 0.0, 1.0, 0.0], "steep", "many"])
+def test12b_guided_search_equals_binary_search(weights, rng):
+    """Distribution1D.find (a guide table) gives np.searchsorted's index for
+    every u in [0, 1), at the cdf's own values and around them too, and falls
+    back to it for anything else (NaN, 1, negative)."""
+    from core.camera import PixelFilter
+    if weights == "filter":
+        dist = PixelFilter(1.5).dist        # tails of bins far narrower than a guide cell
+    elif weights == "steep":
+        dist = S.Distribution1D(np.exp(-np.arange(300) / 8.0))
+    elif weights == "many":
+        dist = S.Distribution1D(rng.random(100_000) ** 4)
+    else:
+        dist = S.Distribution1D(weights)
+    at = dist.cdf[:-1].astype(np.float32)
+    u = np.concatenate([rng.random(200_000, dtype=np.float32), at, np.nextafter(at, np.float32(0)),
+                        np.nextafter(at, np.float32(1)), np.float32([0.0, 0.99999994])])
+    u = u[(u >= 0) & (u < 1)]
+    expected = np.searchsorted(dist.cdf, u, side="right") - 1
+    assert np.array_equal(dist.find(u), expected)
+    odd = np.float32([np.nan, 1.0, -0.5, 0.25])
+    assert np.array_equal(dist.find(odd), np.searchsorted(dist.cdf, odd, side="right") - 1)
+
 # --- MIS and frames ---------------------------------------------------------------------------
 
 def test13_power_heuristic(rng):
