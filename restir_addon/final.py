@@ -106,7 +106,9 @@ def _write(result, images, width, height):
         if data is None:
             continue
         if p.name != "Combined":
-            data = np.nan_to_num(data, nan=0.0, posinf=1e10, neginf=0.0).astype(np.float32)
+            data = np.asarray(data, np.float32)
+            if not np.isfinite(data).all():     # (a test, not a copy, in the common case)
+                data = np.nan_to_num(data, nan=0.0, posinf=1e10, neginf=0.0)
         p.rect.foreach_set(data.ravel())
 
 
