@@ -28,6 +28,7 @@ import time
 import bpy
 
 from ..core.materials import shading
+from .export import Warnings
 from .export.camera import export_camera
 from .scene_sync import SceneSync
 from .viewport_sync import _same_camera
@@ -64,8 +65,10 @@ class FrameScene(SceneSync):
             pass        # the geometry, materials and lights stay as the last update left them
         elif self._instances is None or persistent != self._persistent or fresh_depsgraph:
             # Everything (a new depsgraph with Persistent Data has new data
-            # throughout, and its meshes are keyed by data).
+            # throughout, and its meshes are keyed by data). Warnings start
+            # over too: what a previous render warned about may be fixed.
             self._stable_keys = not persistent
+            self.warnings, self._reported = Warnings(), 0
             self.sync(depsgraph)
         elif persistent:
             self.sync(depsgraph, depsgraph.updates)     # what Blender flagged

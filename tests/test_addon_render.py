@@ -194,6 +194,22 @@ def test_what_is_not_rendered_is_reported(addon, reports, tmp_path):
     assert reports.of("ERROR") == []
 
 
+def test_fixed_problems_are_not_reported_again(addon, reports, tmp_path):
+    """A warning belongs to the render that found it: once the user fixed what
+    it was about (hair now drawn as objects), the next render is silent."""
+    scene = lit_plane_scene()
+    furry = add_mesh("Furry", *rect(-1, 1, -1, 1, z=0.5))
+    settings = furry.modifiers.new("hair", "PARTICLE_SYSTEM").particle_system.settings
+    settings.type = "HAIR"
+    render_exr(scene, tmp_path / "before.exr")
+    assert any("'Furry': particle hair" in w for w in reports.of("WARNING")), reports.log
+    settings.render_type = "OBJECT"
+    settings.instance_object = add_mesh("Seed", *rect(-0.01, 0.01, -0.01, 0.01, z=-1.0))
+    reports.log.clear()
+    render_exr(scene, tmp_path / "after.exr")
+    assert not any("particle hair" in w for w in reports.of("WARNING")), reports.log
+
+
 @pytest.mark.parametrize("mode", ["PATH", "RESTIR_BIASED"])
 def test_stereo_views(addon, reports, tmp_path, mode):
     """Stereo 3D renders each eye from Blender's stereo rig (the left eye is
