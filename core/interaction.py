@@ -19,7 +19,8 @@ class SurfaceHits:
     """
     p: np.ndarray           # (N, 3) position
     ng: np.ndarray          # (N, 3) unit geometric normal, facing wo
-    ns: np.ndarray          # (N, 3) unit shading normal, same hemisphere as ng
+    ns: np.ndarray          # (N, 3) unit shading normal, same hemisphere as ng (mirrored through
+                            # the face's plane where it pointed across it)
     wo: np.ndarray          # (N, 3) unit direction back along the incoming ray
     prim: np.ndarray        # (N,) int32 triangle index
     material: np.ndarray    # (N,) int32 material id
@@ -58,8 +59,14 @@ def surface_hits(scene, origins, directions, hits, mask=None):
         ns[bad_ns] = ng[bad_ns]
     wo = -gather(directions, idx).astype(np.float32)
     front = dot(ng, wo) >= 0
-    ng = scale(ng, np.where(front, np.float32(1), np.float32(-1)))
-    ns = scale(ns, np.where(dot(ns, ng) >= 0, np.float32(1), np.float32(-1)))
+    side = np.where(front, np.float32(1), np.float32(-1))
+    ng, ns = scale(ng, side), scale(ns, side)
+    # A shading normal across the face's plane (custom normals at right
+    # angles to their faces, stored a hair off) is mirrored through the
+    # plane, not turned around: it stays nearly where the mesh points it.
+    across = dot(ns, ng)
+    if (across < 0).any():
+        ns = (ns - scale(ng, 2 * np.minimum(across, 0))).astype(np.float32)
     return SurfaceHits(p=p, ng=ng, ns=ns, wo=wo, prim=prim.astype(np.int32),
                        material=np.take(scene.material_ids, prim), front=front,
                        bary=np.stack([b1, b2], axis=1).astype(np.float32)), idx

@@ -9,7 +9,7 @@ import pytest
 from core import Camera, Lights, Materials, RenderContext, RenderSettings, make_scene, render_frame
 from core.camera import PixelFilter
 from core.integrators.path import camera_pass
-from core.scene import LIGHT_AREA, LIGHT_POINT
+from core.scene import LIGHT_AREA, LIGHT_POINT, LIGHT_SUN
 from scenes import Builder, cornell_box, furnace, look_at, quad
 
 
@@ -138,6 +138,21 @@ def test06_lights_through_nee_and_bsdf_rays(light, pixel):
     shows up as a few percent)."""
     colour = path_samples(lit_plane([light], size=16), 32, 0)
     assert_mean(colour, np.full(3, pixel), rel=1e-3)
+
+
+def test06b_shading_normals_across_the_face_keep_their_side():
+    """Custom normals at right angles to their faces (foliage and cards
+    shaded as a volume) are stored a hair across the face's plane. They are
+    shaded as they point, as Cycles does (0.8 / pi S cos to the sun), not
+    turned around to face away from the light (black)."""
+    scene = lit_plane([{"kind": LIGHT_SUN, "direction": (-0.6, 0.0, -0.8), "power": (2.0,) * 3,
+                        "angle": 0.0}])
+    ns = np.float32([1.0, 0.0, -1e-4]) / np.float32(np.hypot(1.0, 1e-4))
+    scene = make_scene(scene.vertices, scene.triangles, scene.material_ids, scene.materials, scene.lights,
+                       scene.camera, normals=np.broadcast_to(ns, (scene.triangle_count, 3, 3)),
+                       width=8, height=8)
+    colour = path_samples(scene, 2, 0)
+    assert_mean(colour, np.full(3, 0.8 / np.pi * 2.0 * 0.6), rel=1e-3)
 
 
 # --- (3) determinism -----------------------------------------------------------------------
