@@ -194,6 +194,28 @@ def test_what_is_not_rendered_is_reported(addon, reports, tmp_path):
     assert reports.of("ERROR") == []
 
 
+def test_volume_only_material_is_see_through(addon, reports, tmp_path):
+    """A fog box around the scene (a material with only a Volume) has no
+    surface in Cycles; its volume is not rendered here, so the image is the
+    scene without it, with a warning, not the inside of a black box."""
+    import bpy
+    scene = lit_plane_scene()
+    render_exr(scene, tmp_path / "clear.exr")
+    mat = bpy.data.materials.new("Fog")
+    tree = mat.node_tree
+    tree.nodes.remove(tree.nodes["Principled BSDF"])
+    fog = tree.nodes.new("ShaderNodeVolumePrincipled")
+    tree.links.new(fog.outputs[0], tree.nodes["Material Output"].inputs["Volume"])
+    corners = [(x, y, z) for x in (-8, 8) for y in (-8, 8) for z in (-8, 8)]
+    faces = [[0, 1, 3, 2], [4, 6, 7, 5], [0, 4, 5, 1], [2, 3, 7, 6], [0, 2, 6, 4], [1, 5, 7, 3]]
+    add_mesh("FogBox", corners, faces, mat=mat)
+    render_exr(scene, tmp_path / "fog.exr")
+    clear, fog = read_exr(tmp_path / "clear.exr"), read_exr(tmp_path / "fog.exr")
+    assert_valid(fog, (32, 32))
+    np.testing.assert_allclose(fog.reshape(-1, 3).mean(axis=0), clear.reshape(-1, 3).mean(axis=0), rtol=0.05)
+    assert any("'Fog': volume shading" in w and "see-through" in w for w in reports.of("WARNING")), reports.log
+
+
 def test_fixed_problems_are_not_reported_again(addon, reports, tmp_path):
     """A warning belongs to the render that found it: once the user fixed what
     it was about (hair now drawn as objects), the next render is silent."""

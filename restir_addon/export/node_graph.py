@@ -99,11 +99,21 @@ def translate(tree, output_types=("OUTPUT_MATERIAL",), images=None, name=""):
         surface = output.inputs.get("Surface")
         if surface is not None and _available(surface):
             graph.output = _Translator(graph, images).reader_value(surface, _Scope(tree), output.name)
-        for socket, what in (("Volume", "volume shading is not rendered (only the surface)"),
-                             ("Displacement", "displacement is not rendered")):
-            other = output.inputs.get(socket)
-            if other is not None and other.is_linked and _available(other):
-                graph.warnings.append(what)
+        volume = output.inputs.get("Volume")
+        if volume is not None and volume.is_linked and _available(volume):
+            if surface is not None and not surface.is_linked and "OUTPUT_MATERIAL" in output_types:
+                # Cycles' boundary of a volume-only material (a smoke domain,
+                # a fog box around the scene) lets light through: without the
+                # volume it is see-through, not a black box.
+                graph.output = Link(graph.add(Node("BSDF_TRANSPARENT", {"Color": (1.0, 1.0, 1.0)},
+                                                   name="Volume boundary")), "BSDF")
+                graph.warnings.append("volume shading is not rendered (the volume-only material is "
+                                      "left see-through)")
+            else:
+                graph.warnings.append("volume shading is not rendered (only the surface)")
+        displacement = output.inputs.get("Displacement")
+        if displacement is not None and displacement.is_linked and _available(displacement):
+            graph.warnings.append("displacement is not rendered")
     except RecursionError:
         graph.warnings.append("node tree too deep to translate")
         graph.output = None
