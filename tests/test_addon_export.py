@@ -324,6 +324,18 @@ def test_light_temperature_and_spread(addon):
     assert len(s.warnings) == 1, s.warnings
 
 
+def test_light_without_shadows_warns(addon):
+    """Cast Shadow off (Cycles: the light is never blocked) is not rendered:
+    the light still casts shadows, and says so, once."""
+    fresh()
+    add_light("ghost", "POINT", location=(0, 0, 1), use_shadow=False)
+    add_light("plain", "POINT", location=(1, 0, 1))
+    s = export(addon)
+    assert len(s.lights) == 2
+    assert [w for w in s.warnings if "Cast Shadow" in w] == [
+        "Light 'ghost': Cast Shadow off is not supported; the light casts shadows"], s.warnings
+
+
 # ---------------------------------------------------------------- world
 
 def test_ray_visibility_per_object(addon):
