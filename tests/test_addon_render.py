@@ -164,8 +164,8 @@ def test_unsupported_node_reported(addon, reports, tmp_path):
 
 def test_what_is_not_rendered_is_reported(addon, reports, tmp_path):
     """Volume objects, point clouds, hair (curves and particles), volume
-    shading, displacement and motion blur each say they are not rendered;
-    the render goes on."""
+    shading, displacement, shadow catchers and motion blur each say they are
+    not rendered; the render goes on."""
     import bpy
     scene = lit_plane_scene()
     hair = bpy.data.hair_curves.new("Fur")
@@ -181,12 +181,13 @@ def test_what_is_not_rendered_is_reported(addon, reports, tmp_path):
     tree.links.new(tree.nodes.new("ShaderNodeVolumePrincipled").outputs[0], out.inputs["Volume"])
     tree.links.new(tree.nodes.new("ShaderNodeDisplacement").outputs[0], out.inputs["Displacement"])
     add_mesh("Foggy", *rect(-1, 1, -1, 1, z=1.0), mat=mat)
+    add_mesh("Catcher", *rect(-1, 1, -1, 1, z=0.2)).is_shadow_catcher = True
     scene.render.use_motion_blur = True
     render_exr(scene, tmp_path / "what.exr")
     warnings = reports.of("WARNING")
     for text in ("'Smoke': volume objects", "'Dots': point clouds", "'Fur': hair curves",
                  "'Furry': particle hair", "'Fog': volume shading",
-                 "'Fog': displacement", "Motion blur"):
+                 "'Fog': displacement", "'Catcher': shadow catcher", "Motion blur"):
         assert any(text in w for w in warnings), (text, reports.log)
     img = read_exr(tmp_path / "what.exr")
     assert_valid(img, (32, 32))

@@ -79,6 +79,14 @@ def ray_visibility(obj):
                  for kind in ("camera", "shadow", "diffuse", "glossy", "transmission"))
 
 
+def catcher_warning(obj):
+    """The warning for Object > Visibility > Shadow Catcher, not rendered here
+    (the object renders as an ordinary one), else None."""
+    if getattr(obj, "is_shadow_catcher", False):
+        return f"Object '{obj.name}': shadow catcher is not supported; it renders as an ordinary object"
+    return None
+
+
 def film_transparent(scene):
     """Render Properties > Film > Transparent."""
     return bool(getattr(scene.render, "film_transparent", False))
@@ -139,6 +147,8 @@ def export_scene(depsgraph, width=None, height=None):
             object_matrices.append(np.array(inst.matrix_world, np.float32))
             object_colors.append(tuple(obj.color))
             visibility.append(ray_visibility(obj))
+            if catcher_warning(obj):
+                warn(catcher_warning(obj))
         oids.append(np.full(len(mesh.triangles), object_index[key], np.int32))
         offset += len(pos)
 
