@@ -324,6 +324,22 @@ def test_light_temperature_and_spread(addon):
     assert len(s.warnings) == 1, s.warnings
 
 
+def test_area_light_of_zero_size_emits_nothing(addon):
+    """An area light of size 0 (or scaled flat) has no area: Cycles renders
+    nothing of it; here it emits nothing too, with a warning, instead of a
+    point of unbounded radiance."""
+    fresh()
+    add_light("flat", "AREA", size=1.0, scale=(1, 0, 1), energy=100.0)
+    add_light("dot", "AREA", size=0.0, energy=100.0)
+    add_light("lamp", "AREA", size=0.5, energy=100.0)
+    s = export(addon)
+    power = {name: s.lights.power[s.lights.names.index(name)] for name in ("flat", "dot", "lamp")}
+    assert (power["flat"] == 0).all() and (power["dot"] == 0).all() and (power["lamp"] > 0).all()
+    assert sorted(w for w in s.warnings if "zero size" in w) == [
+        "Light 'dot': area light of zero size emits no light",
+        "Light 'flat': area light of zero size emits no light"], s.warnings
+
+
 def test_light_without_shadows_warns(addon):
     """Cast Shadow off (Cycles: the light is never blocked) is not rendered:
     the light still casts shadows, and says so, once."""

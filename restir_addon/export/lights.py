@@ -49,6 +49,10 @@ def light_row(light_object, matrix, warn):
         row["shape"] = shape
         row["size_u"] = size_u * scale[0]
         row["size_v"] = size_v * scale[1]
+        if not row["size_u"] * row["size_v"] > 0:
+            # As Cycles: an area light without area emits nothing.
+            warn(f"Light '{name}': area light of zero size emits no light")
+            row["power"] = np.zeros(3)
         spread = float(getattr(light, "spread", np.pi))
         if spread < np.pi - 1e-4:
             warn(f"Light '{name}': area light spread below 180 degrees is not supported")
