@@ -154,7 +154,7 @@ class LightSet:
         without the re-stretched u, which sampling does not use)."""
         if self.distribution.count == 1:
             return np.zeros(len(u_select), np.intp)
-        idx = self.distribution.find(u_select)
+        idx = self.distribution.locate(u_select) - 1
         return np.clip(idx, 0, self.distribution.count - 1)
 
     def sample(self, p, u_select, u, n=None):

@@ -170,7 +170,7 @@ def test12_distribution_continuous(rng):
 @pytest.mark.parametrize("weights", [
     "filter", [1.0], [0.0, 0.0, 1.0, 0.0], "steep", "many"])
 def test12b_guided_search_equals_binary_search(weights, rng):
-    """Distribution1D.find (a guide table) gives np.searchsorted's index for
+    """Distribution1D.locate (a table of cells) gives np.searchsorted's index for
     every u in [0, 1), at the cdf's own values and around them too, and falls
     back to it for anything else (NaN, 1, negative)."""
     from core.camera import PixelFilter
@@ -186,10 +186,10 @@ def test12b_guided_search_equals_binary_search(weights, rng):
     u = np.concatenate([rng.random(200_000, dtype=np.float32), at, np.nextafter(at, np.float32(0)),
                         np.nextafter(at, np.float32(1)), np.float32([0.0, 0.99999994])])
     u = u[(u >= 0) & (u < 1)]
-    expected = np.searchsorted(dist.cdf, u, side="right") - 1
-    assert np.array_equal(dist.find(u), expected)
+    expected = np.searchsorted(dist.cdf, u, side="right")
+    assert np.array_equal(dist.locate(u), expected)
     odd = np.float32([np.nan, 1.0, -0.5, 0.25])
-    assert np.array_equal(dist.find(odd), np.searchsorted(dist.cdf, odd, side="right") - 1)
+    assert np.array_equal(dist.locate(odd), np.searchsorted(dist.cdf, odd, side="right"))
 
 # --- MIS and frames ---------------------------------------------------------------------------
 
