@@ -148,6 +148,8 @@ def shadow_rays(ctx, p, ng, wi, dist):
     """
     o = offset_origins(p, ng, wi, ctx.eps)
     finite = dist < INF_DIST
+    if not finite.any():    # lights at infinity only (suns, the world): along wi, unbounded
+        return o, wi.astype(np.float32), np.full(len(o), INF_DIST, np.float32)
     target = p + wi * np.where(finite, dist, 0.0)[:, None]
     d = target - o
     length = np.sqrt(dot(d, d))
