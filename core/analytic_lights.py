@@ -112,6 +112,16 @@ class AnalyticLights:
         p = luminance(lights.power) if len(lights) else np.zeros(0, np.float32)
         return np.where(lights.kind == LIGHT_SUN, p * np.pi * scene_radius ** 2, p)
 
+    def crossable(self):
+        """False when no ray can cross a light, so that emitted_along gives
+        zero everywhere: only suns and points of zero radius."""
+        lt = self.lights
+        if len(lt) == 0:
+            return False
+        kind = np.asarray(lt.kind)
+        sized = ((kind == LIGHT_POINT) | (kind == LIGHT_SPOT)) & (np.asarray(lt.radius) > 0)
+        return bool(((kind == LIGHT_AREA) | sized).any())
+
     def _spot_mask(self, li, dir_from_light):
         lt = self.lights
         one = _same_index(li)

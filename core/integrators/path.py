@@ -72,40 +72,46 @@ def radiance_from_surface(ctx, surf, seeds, bounce0, max_bounces, frame=None, co
             u_rr = samplers.uniform(s, samplers.bounce_dim(bounce, samplers.D_RR))
             valid &= u_rr >= q
             beta = scale(beta, 1.0 / np.maximum(1.0 - q, 1e-6))
+        # Rows of the surviving rays are taken from the rows of this vertex
+        # once, at the composed index, when the next vertex is known (each
+        # row gather costs a pass over the batch).
         keep = np.nonzero(valid)[0]
-        alive, beta, wi, pdf = alive[keep], gather(beta, keep), gather(wi, keep), pdf[keep]
+        alive, wi, pdf = alive[keep], gather(wi, keep), pdf[keep]
         kinds = kinds[keep] if kinds is not None else None
         if track:
             c = counts[alive]
             final = count(c, kinds, limits)     # these rays end their paths at their hits
             counts[alive] = c
-        p_prev = gather(surf.p, keep)
-        n_prev = gather(surf.ns, keep)      # the normal NEE sampled a constant world about
-        o = offset_origins(p_prev, gather(surf.ng, keep), wi, ctx.eps)
+        o = offset_origins(gather(surf.p, keep), gather(surf.ng, keep), wi, ctx.eps)
         hits = ctx.accel.intersect_closest(o, wi, kinds=kinds) if by_kind \
             else ctx.accel.intersect_closest(o, wi)
         # Emission found by the BSDF rays, each weighted against NEE.
-        if ctx.lights.n_analytic:
-            scatter_add(L, alive, beta * ctx.lights.emitted_along(o, wi, hits.t, pdf_bsdf=pdf, kinds=kinds))
+        if ctx.lights.n_analytic and ctx.lights.analytic.crossable():
+            scatter_add(L, alive, gather(beta, keep) * ctx.lights.emitted_along(o, wi, hits.t, pdf_bsdf=pdf,
+                                                                               kinds=kinds))
         miss = np.nonzero(~hits.hit)[0]
         if len(miss) and ctx.lights.environment is not None:
+            # n: the normal NEE sampled a constant world about.
+            rows = keep[miss]
             scatter_add(L, alive[miss], escaped_radiance(ctx.lights, gather(wi, miss), pdf[miss],
-                                                         gather(n_prev, miss), gather(beta, miss)))
+                                                         gather(surf.ns, rows), gather(beta, rows)))
+        prev = surf
         surf, idx = surface_hits(scene, o, wi, hits)
         frame = None
-        alive, beta, pdf, p_prev = alive[idx], gather(beta, idx), pdf[idx], gather(p_prev, idx)
+        rows = keep[idx]
+        alive, beta, pdf = alive[idx], gather(beta, rows), pdf[idx]
         if len(ctx.lights.tri_index):
             le = ctx.lights.triangle_emission(surf.prim, surf.front)
             emissive = np.nonzero(row_max(le) > 0)[0]
             if len(emissive):
-                pdf_l = ctx.lights.pdf_triangle(surf.prim[emissive], gather(p_prev, emissive),
+                pdf_l = ctx.lights.pdf_triangle(surf.prim[emissive], gather(prev.p, rows[emissive]),
                                                 gather(surf.p, emissive), -gather(surf.wo, emissive))
                 w = power_heuristic(pdf[emissive], pdf_l)
                 scatter_add(L, alive[emissive], scale(gather(beta, emissive) * gather(le, emissive), w))
         if track and len(alive):
             go = np.nonzero(~final[idx])[0]
             if len(go) < len(alive):
-                alive, beta, pdf, p_prev = alive[go], gather(beta, go), pdf[go], gather(p_prev, go)
+                alive, beta, pdf = alive[go], gather(beta, go), pdf[go]
                 surf = surf.subset(go)
     np.nan_to_num(L, copy=False, nan=0.0, posinf=0.0, neginf=0.0)
     return L
