@@ -13,7 +13,7 @@ from dataclasses import dataclass, fields
 
 import numpy as np
 
-from .rows import divide, gather, scale, scatter, scatter_add
+from .rows import divide, gather, row_max, scale, scatter, scatter_add
 from .sampling import (INV_PI, cosine_hemisphere_pdf, dot, luminance,
                        square_to_cosine_hemisphere)
 
@@ -131,19 +131,35 @@ def at_view(params, wo):
     as Cycles' precomputed albedo tables do (core/microfacet_albedo.py): the
     layered diffuse keeps 1 - E of the dielectric layer above it, and the GGX
     lobe is scaled up by the energy single scattering loses."""
-    from .microfacet_albedo import albedo_terms   # noqa: PLC0415
-    if len(params.alpha) == 0:
+    from .microfacet_albedo import albedo_terms, dielectric_f90   # noqa: PLC0415
+    n = len(params.alpha)
+    if n == 0:
         return params
     cos = np.clip(wo[:, 2], 0.0, 1.0)
-    rough = np.sqrt(params.alpha)
-    a, b = albedo_terms(rough, cos)
-    if params.layered is not None and params.layer_f0 is not None:
-        from .microfacet_albedo import dielectric_f90   # noqa: PLC0415
-        e_layer = np.clip(params.layer_f0 * a + dielectric_f90(params.layer_f0) * b, 0.0, 1.0)
-        params.diffuse = np.maximum(params.diffuse - scale(params.layered, e_layer), 0.0).astype(np.float32)
-    e1 = np.maximum(a + b, 1e-3)
     f90 = params.f90 if params.f90 is not None else np.ones_like(params.f0)
     f_avg = params.f0 + (f90 - params.f0) * np.float32(1.0 / 21.0)
+    layered = params.layered is not None and params.layer_f0 is not None
+    # The albedo matters only on rows with a dielectric layer or a GGX lobe:
+    # elsewhere (diffuse-only materials) a = b = 0 gives the same parameters
+    # (the layer takes 0 x E = 0, and a zero F_avg keeps the boost at 1).
+    need = row_max(np.abs(f_avg)) > 0
+    if layered:
+        need |= params.layer_f0 != 0
+    rows = None if need.all() else np.nonzero(need)[0]
+
+    def pick(v):
+        return v if rows is None else np.take(v, rows)
+
+    def spread(v):
+        return v if rows is None else scatter(np.zeros(n, v.dtype), rows, v)
+
+    a, b = albedo_terms(np.sqrt(pick(params.alpha)), pick(cos))
+    if layered:
+        lf0 = pick(params.layer_f0)
+        e_layer = spread(np.clip(lf0 * a + dielectric_f90(lf0) * b, 0.0, 1.0))
+        params.diffuse = np.maximum(params.diffuse - scale(params.layered, e_layer), 0.0).astype(np.float32)
+    a, b = spread(a), spread(b)
+    e1 = np.maximum(a + b, 1e-3)
     boost = (1.0 + scale(f_avg, (1.0 - e1) / e1)).astype(np.float32)
     params.f0 = (params.f0 * boost).astype(np.float32)
     params.f90 = (f90 * boost).astype(np.float32)

@@ -65,15 +65,23 @@ def albedo_terms(rough, cos):
     y = np.clip(np.asarray(rough, np.float32) * (N_ROUGH - 1), 0, N_ROUGH - 1)
     x0 = np.minimum(x.astype(np.int64), N_COS - 2)
     y0 = np.minimum(y.astype(np.int64), N_ROUGH - 2)
-    fx, fy = x - x0, y - y0
-    i = y0 * N_COS + x0
-    w00, w01 = (1 - fx) * (1 - fy), fx * (1 - fy)
-    w10, w11 = (1 - fx) * fy, fx * fy
+    fx, fy = x - x0, y - y0     # float64, as are the weights
+    gx, gy = 1 - fx, 1 - fy
+    i00 = y0 * N_COS
+    i00 += x0
+    taps = ((i00, gx * gy), (i00 + 1, fx * gy), (i00 + N_COS, gx * fy), (i00 + (N_COS + 1), fx * fy))
 
     def read(table):
+        # ((t00 w00 + t01 w01) + t10 w10) + t11 w11, summed in place.
         flat = table.reshape(-1)
-        return (np.take(flat, i) * w00 + np.take(flat, i + 1) * w01
-                + np.take(flat, i + N_COS) * w10 + np.take(flat, i + N_COS + 1) * w11).astype(np.float32)
+        out = tmp = None
+        for index, w in taps:
+            if out is None:
+                out = np.multiply(np.take(flat, index), w)
+                tmp = np.empty_like(out)
+            else:
+                out += np.multiply(np.take(flat, index), w, out=tmp)
+        return out.astype(np.float32)
 
     return read(a_tab), read(b_tab)
 
