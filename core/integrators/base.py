@@ -68,7 +68,7 @@ class ShadingFrame:
         return to_local(w, self.t, self.b, surf.ns)
 
     def world(self, surf, w_local):
-        return to_world(w_local, self.t, self.b, surf.ns).astype(np.float32)
+        return to_world(w_local, self.t, self.b, surf.ns).astype(np.float32, copy=False)
 
 
 def direct_light(ctx, surf, frame, seeds, bounce, mis=True, strategy_pdf=None, u_light=None,
@@ -95,11 +95,12 @@ def direct_light(ctx, surf, frame, seeds, bounce, mis=True, strategy_pdf=None, u
         u_sel, u = u_light
     ls = ctx.lights.sample(surf.p, u_sel, u, surf.ns)
     wi_local = frame.local(surf, ls.wi)
-    if mis and strategy_pdf is None:
+    delta = mis and ls.delta.all()      # lights of no extent only (a sun of zero angle): weight one
+    if mis and strategy_pdf is None and not delta:
         f, pdf_b = bsdf.evaluate_pdf(frame.params, frame.wo_local, wi_local)
     else:
         f = bsdf.evaluate(frame.params, frame.wo_local, wi_local)
-        pdf_b = strategy_pdf(wi_local) if mis else None
+        pdf_b = strategy_pdf(wi_local) if mis and not delta else None
     hidden = getattr(ctx.lights, "hidden_kinds", None)
     if hidden is not None and ls.index is not None:
         f = _without_hidden_lobes(frame, wi_local, f, np.take(hidden, ls.index, axis=0))
@@ -107,7 +108,7 @@ def direct_light(ctx, surf, frame, seeds, bounce, mis=True, strategy_pdf=None, u
     # geometric and shading normals agree (only glass lobes refract).
     cos = np.abs(wi_local[:, 2])
     above = (dot(ls.wi, surf.ng) > 0) == (wi_local[:, 2] > 0)
-    if mis:
+    if mis and not delta:
         w = np.where(ls.delta, 1.0, power_heuristic(ls.pdf, pdf_b))
     else:
         w = np.ones(n, np.float32)
@@ -175,7 +176,7 @@ def sample_continuation(ctx, surf, frame, seeds, bounce, kinds=False):
     with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
         weight = scale(f, cos / np.where(pdf > 0, pdf, 1.0))
     valid &= rows_finite(weight) & (row_max(weight) > 0)
-    weight = scale(np.nan_to_num(weight, copy=False), valid.astype(np.float32)).astype(np.float32)
+    weight = scale(np.nan_to_num(weight, copy=False), valid.astype(np.float32)).astype(np.float32, copy=False)
     if kinds:
         return wi, weight, pdf, valid, bsdf.sampled_kinds(frame.params, frame.wo_local, wi_local, u_lobe)
     return wi, weight, pdf, valid
