@@ -49,15 +49,22 @@ def surface_hits(scene, origins, directions, hits, mask=None):
     p0, p1, p2 = (gather(scene.vertices, tri[:, k]) for k in range(3))
     # The hit point from the barycentrics is more precise than o + t d far away.
     # (Weighted sums column by column: core/rows.py.)
-    p = (scale(p0, b0) + scale(p1, b1) + scale(p2, b2)).astype(np.float32)
+    p = scale(p0, b0)
+    p += scale(p1, b1)
+    p += scale(p2, b2)
+    p = p.astype(np.float32, copy=False)
     fn = scene.face_normals
     ng = gather(fn, prim) if fn is not None else normalize(np.cross(p1 - p0, p2 - p0)).astype(np.float32)
     n = gather(scene.normals, prim)
-    ns = normalize(scale(n[:, 0], b0) + scale(n[:, 1], b1) + scale(n[:, 2], b2)).astype(np.float32)
+    ns = scale(n[:, 0], b0)
+    ns += scale(n[:, 1], b1)
+    ns += scale(n[:, 2], b2)
+    ns = normalize(ns).astype(np.float32, copy=False)
     bad_ns = ~(dot(ns, ns) > 0.5)
     if bad_ns.any():
         ns[bad_ns] = ng[bad_ns]
-    wo = -gather(directions, idx).astype(np.float32)
+    wo = gather(directions, idx).astype(np.float32, copy=False)     # a fresh copy: negated in place
+    np.negative(wo, out=wo)
     front = dot(ng, wo) >= 0
     side = np.where(front, np.float32(1), np.float32(-1))
     ng, ns = scale(ng, side), scale(ns, side)
@@ -69,4 +76,4 @@ def surface_hits(scene, origins, directions, hits, mask=None):
         ns = (ns - scale(ng, 2 * np.minimum(across, 0))).astype(np.float32)
     return SurfaceHits(p=p, ng=ng, ns=ns, wo=wo, prim=prim.astype(np.int32),
                        material=np.take(scene.material_ids, prim), front=front,
-                       bary=np.stack([b1, b2], axis=1).astype(np.float32)), idx
+                       bary=np.stack([b1, b2], axis=1).astype(np.float32, copy=False)), idx
