@@ -30,11 +30,19 @@ D_RR = 6
 
 def mix64(x):
     """SplitMix64 finaliser: a bijective, well-avalanched 64-bit hash (arrays)."""
-    x = np.asarray(x, dtype=np.uint64)
+    x = np.array(x, dtype=np.uint64)    # a copy, worked on in place
+    if x.ndim == 0:
+        with np.errstate(over="ignore"):
+            x = (x ^ (x >> _S30)) * _M1
+            x = (x ^ (x >> _S27)) * _M2
+        return x ^ (x >> _S31)
+    t = np.empty_like(x)
     with np.errstate(over="ignore"):
-        x = (x ^ (x >> _S30)) * _M1
-        x = (x ^ (x >> _S27)) * _M2
-    return x ^ (x >> _S31)
+        for shift, m in ((_S30, _M1), (_S27, _M2)):
+            x ^= np.right_shift(x, shift, out=t)
+            x *= m
+    x ^= np.right_shift(x, _S31, out=t)
+    return x
 
 
 def hash_keys(*keys):
@@ -55,12 +63,21 @@ def uniform(seeds, dim):
     """float32 uniforms in [0, 1) for each seed at dimension ``dim``."""
     with np.errstate(over="ignore"):
         h = mix64(seeds + np.uint64(dim + 1) * _GOLDEN)
-    return (h >> np.uint64(40)).astype(np.float32) * _TO_UNIT
+    h >>= np.uint64(40)
+    u = h.astype(np.float32)
+    u *= _TO_UNIT
+    return u
 
 
 def uniform2(seeds, dim):
     """(N, 2) uniforms at dimensions dim and dim + 1."""
-    return np.stack([uniform(seeds, dim), uniform(seeds, dim + 1)], axis=1)
+    seeds = np.asarray(seeds)
+    if seeds.ndim != 1:
+        return np.stack([uniform(seeds, dim), uniform(seeds, dim + 1)], axis=1)
+    out = np.empty((len(seeds), 2), np.float32)
+    out[:, 0] = uniform(seeds, dim)
+    out[:, 1] = uniform(seeds, dim + 1)
+    return out
 
 
 def lens_uniforms(camera, seeds):
