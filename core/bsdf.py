@@ -142,17 +142,10 @@ def at_view(params, wo):
     # The albedo matters only on rows with a dielectric layer or a GGX lobe:
     # elsewhere (diffuse-only materials) a = b = 0 gives the same parameters
     # (the layer takes 0 x E = 0, and a zero F_avg keeps the boost at 1).
-    need = row_max(np.abs(f_avg)) > 0
-    if layered:
-        need |= params.layer_f0 != 0
+    need = (row_max(np.abs(f_avg)) > 0) | (params.layer_f0 != 0 if layered else False)
     rows = None if need.all() else np.nonzero(need)[0]
-
-    def pick(v):
-        return v if rows is None else np.take(v, rows)
-
-    def spread(v):
-        return v if rows is None else scatter(np.zeros(n, v.dtype), rows, v)
-
+    pick = (lambda v: v) if rows is None else (lambda v: np.take(v, rows))     # noqa: E731
+    spread = (lambda v: v) if rows is None else (lambda v: scatter(np.zeros(n, v.dtype), rows, v))  # noqa: E731
     a, b = albedo_terms(np.sqrt(pick(params.alpha)), pick(cos))
     if layered:
         lf0 = pick(params.layer_f0)
@@ -167,7 +160,6 @@ def at_view(params, wo):
         from .sheen import at_view as sheen_at_view   # noqa: PLC0415
         sheen_at_view(params, cos)
     return params
-
 
 
 def lobe_params(diffuse, f0, roughness, f90=None, glass=None):
