@@ -89,6 +89,14 @@ class LightSet:
             hidden[self.n_analytic:-1] = ~np.asarray(vis, bool)[scene.object_ids[self.tri_index]][:, 2:5]
         if hidden.any():
             self.hidden_kinds = hidden
+        # Per light, no shadow rays (a lamp with Cast Shadow off): its samples
+        # light what they reach whatever lies between, as in Cycles, whose
+        # shadow ray setup skips such lights (None: every light casts shadows).
+        self.shadowless = None
+        free = getattr(scene.lights, "shadowless", None)
+        if free is not None and np.any(free):
+            self.shadowless = np.zeros(self.n_analytic + len(self.tri_index) + 1, bool)
+            self.shadowless[:self.n_analytic] = free
 
         lo, hi = scene.bounds()
         self.scene_radius = max(0.5 * float(np.linalg.norm(hi - lo)), 1e-3)

@@ -80,6 +80,9 @@ class Lights:
     names: list = field(default_factory=list)
     # (L, 3) bool: hidden from diffuse, glossy, transmission rays (None: from none)
     hidden_kinds: np.ndarray = None
+    # (L,) bool: the light's samples are not tested for occlusion (Cast Shadow
+    # off); None: every light casts shadows
+    shadowless: np.ndarray = None
 
     @staticmethod
     def empty():
@@ -114,6 +117,7 @@ class Lights:
             camera_visible=col("camera_visible", False, bool),
             names=[r.get("name", f"light_{i}") for i, r in enumerate(rows)],
             hidden_kinds=col("hidden_kinds", (False, False, False), bool, width=3),
+            shadowless=col("shadowless", False, bool),
         )
 
     def __len__(self):

@@ -340,16 +340,15 @@ def test_area_light_of_zero_size_emits_nothing(addon):
         "Light 'flat': area light of zero size emits no light"], s.warnings
 
 
-def test_light_without_shadows_warns(addon):
-    """Cast Shadow off (Cycles: the light is never blocked) is not rendered:
-    the light still casts shadows, and says so, once."""
+def test_light_without_shadows_is_exported(addon):
+    """Cast Shadow off reaches the light rows (core/lights.py then traces no
+    shadow rays for them: tests/test_lights_vs_cycles.py), without a warning."""
     fresh()
     add_light("ghost", "POINT", location=(0, 0, 1), use_shadow=False)
     add_light("plain", "POINT", location=(1, 0, 1))
     s = export(addon)
-    assert len(s.lights) == 2
-    assert [w for w in s.warnings if "Cast Shadow" in w] == [
-        "Light 'ghost': Cast Shadow off is not supported; the light casts shadows"], s.warnings
+    assert dict(zip(s.lights.names, s.lights.shadowless.tolist())) == {"ghost": True, "plain": False}
+    assert not [w for w in s.warnings if "Cast Shadow" in w], s.warnings
 
 
 # ---------------------------------------------------------------- world

@@ -1,5 +1,5 @@
-"""Spot (also with colour temperature and a light node tree), sun, emissive
-Principled mesh and world lighting against Cycles.
+"""Spot (also with colour temperature and a light node tree), sun (also with
+Cast Shadow off), emissive Principled mesh and world lighting against Cycles.
 
 A floor with two boxes (Diffuse BSDF) is built in code and lit by one source at
 a time; both engines render it twice with independent seeds. As in
@@ -70,9 +70,11 @@ def _scene(source):
     if source == "spot":
         _light("Spot", "SPOT", (0.2, 0.1, 4.5), energy=2000.0, spot_size=math.radians(60),
                spot_blend=0.3, shadow_soft_size=0.1)
-    elif source == "sun":
+    elif source in ("sun", "shadowless_sun"):
+        # Cast Shadow off: the boxes cast no shadow from the sun's light
+        # samples, while rays that find the sun's disc are still blocked.
         _light("Sun", "SUN", (0, 0, 5), rotation=(math.radians(30), 0, math.radians(20)),
-               energy=3.0, angle=math.radians(5))
+               energy=3.0, angle=math.radians(5), use_shadow=source == "sun")
     elif source == "warm_spot":
         # Colour temperature and a light node tree (Emission colour x strength).
         spot = _light("Spot", "SPOT", (0.2, 0.1, 4.5), energy=1000.0, spot_size=math.radians(60),
@@ -103,7 +105,7 @@ def _scene(source):
     return scene
 
 
-@pytest.mark.parametrize("source", ["spot", "warm_spot", "sun", "emitter", "world"])
+@pytest.mark.parametrize("source", ["spot", "warm_spot", "sun", "shadowless_sun", "emitter", "world"])
 def test_lights_match_cycles(addon, source):
     r = compare_with_cycles(_scene(source), SAMPLES, BOUNCES, BLOCK)
     assert np.isfinite(r["ours"]).all()

@@ -121,9 +121,17 @@ def direct_light(ctx, surf, frame, seeds, bounce, mis=True, strategy_pdf=None, u
     rows = np.nonzero(live)[0]
     if len(rows) == 0:
         return out
-    blocked = ctx.accel.occluded(*shadow_rays(ctx, gather(surf.p, rows), gather(surf.ng, rows),
-                                              gather(ls.wi, rows), ls.dist[rows]))
-    lit = rows[~blocked]
+    free = getattr(ctx.lights, "shadowless", None)
+    if free is not None and ls.index is not None:   # lights with Cast Shadow off: no shadow rays
+        test = ~np.take(free, np.take(ls.index, rows))
+        lit = rows[~test]
+        rows = rows[test]
+    else:
+        lit = rows[:0]
+    if len(rows):
+        blocked = ctx.accel.occluded(*shadow_rays(ctx, gather(surf.p, rows), gather(surf.ng, rows),
+                                                  gather(ls.wi, rows), ls.dist[rows]))
+        lit = np.concatenate([lit, rows[~blocked]]) if len(lit) else rows[~blocked]
     return scatter(out, lit, gather(contrib, lit))
 
 

@@ -56,8 +56,7 @@ def light_row(light_object, matrix, warn):
         spread = float(getattr(light, "spread", np.pi))
         if spread < np.pi - 1e-4:
             warn(f"Light '{name}': area light spread below 180 degrees is not supported")
-    if not getattr(light, "use_shadow", True):
-        warn(f"Light '{name}': Cast Shadow off is not supported; the light casts shadows")
+    row["shadowless"] = not bool(getattr(light, "use_shadow", True))
     if getattr(light, "use_temperature", False):
         row["power"] = row["power"] * blackbody_rec709(np.float32(light.temperature)).ravel()
     if getattr(light, "use_nodes", False) and light.node_tree is not None:
