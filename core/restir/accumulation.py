@@ -327,7 +327,9 @@ def accumulate(prev, footprint, direct, indirect, albedo, normal, cap, alpha=1.0
         return Accumulation(new)
     wts = footprint.weights
     hist = lo = hi = None
-    for k in range(wts.shape[1]):
+    # A still view reads each pixel's own history (one tap of weight one).
+    columns = [0] if footprint.exact else range(wts.shape[1])
+    for k in columns:
         weighted = bool(wts[:, k].any())         # (skipping zero taps adds nothing)
         bounds = footprint.window and k < 4      # the inner 2x2, for the clip below
         if not (weighted or bounds):
