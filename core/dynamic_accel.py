@@ -105,6 +105,10 @@ class DynamicAccel:
         self._dynamic_prims = np.zeros(0, np.int64)
         self._dynamic_keys = set()
         self._object_ids_in = None      # the object_ids array of the last update, as passed
+        # Edits so far and how to repeat the last one on a copy of this
+        # structure in a twin process (core/scene_patch.py).
+        self.updates = 0
+        self.last_update = None
         self.update(vertices, triangles, object_ids, object_keys, changed=set(dynamic) or None)
 
     @staticmethod
@@ -134,6 +138,9 @@ class DynamicAccel:
         scene). Objects that vanished are noticed here. Returns the tuple of
         scenes rebuilt ("static", "dynamic").
         """
+        self.updates += 1
+        self.last_update = ("update", None if changed is None else frozenset(changed),
+                            object_ids is self._object_ids_in)
         same_layout = (changed and self._static is not None and object_ids is self._object_ids_in
                        and object_keys is not None and list(object_keys) == self._keys
                        and set(changed) <= self._dynamic_keys)
@@ -150,7 +157,7 @@ class DynamicAccel:
         keys = list(object_keys) if object_keys is not None else list(range(n_obj))
         self._keys = keys
         if changed is None:
-            return self.settle()
+            return self._settle()
         present = set(keys)
         dynamic = (self._dynamic_keys | set(changed)) & present
         is_dynamic = np.array([k in dynamic for k in keys] + [False], bool)[self._object_ids]
@@ -176,8 +183,24 @@ class DynamicAccel:
         self._dynamic_keys = dynamic
         return tuple(rebuilt)
 
+    def replay(self, last_update, vertices, triangles, object_ids, object_keys):
+        """Repeat another copy's ``last_update`` (``update`` or ``settle``)
+        with the arrays it was given: object_ids as passed there, or the
+        ones this copy was last given where that call passed its previous
+        array again (the update then keeps its partition)."""
+        if last_update[0] == "settle":
+            return self.settle()
+        _, changed, same_ids = last_update
+        return self.update(vertices, triangles, self._object_ids_in if same_ids else object_ids,
+                           object_keys, changed=None if changed is None else set(changed))
+
     def settle(self):
         """Merge every object into the static scene (one full build)."""
+        self.updates += 1
+        self.last_update = ("settle",)
+        return self._settle()
+
+    def _settle(self):
         prims = np.arange(len(self._triangles))
         self._build_static(prims, self._owners(prims))
         if self._dynamic is not None:

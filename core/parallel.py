@@ -45,14 +45,18 @@ class Continuation:
 
     token: () -> what must be equal for the twin's state to be the
     caller's (None: never); state: the objects the twin's next loop starts
-    from (its copies); resume: module-level function (state..., args...) ->
-    the new state, run in the twin; args: picklable, sent to it; complete:
-    set by the loop when it ran to its end."""
+    from (its copies); resume: module-level function (state..., patch,
+    args...) -> the new state, run in the twin; args: picklable, sent to
+    it; patch: (parked state, parked token) -> what brings the twin's copies
+    of a parked state whose token differs to the caller's (picklable; None
+    where nothing does), passed to resume (None when the tokens are equal);
+    complete: set by the loop when it ran to its end."""
     token: object
     state: tuple
     resume: object
     args: tuple
     complete: bool = False
+    patch: object = None
 
 
 def _mark_worker():
@@ -139,7 +143,8 @@ class Workers:
         keep: a Continuation: when the loop has run to its end
         (``keep.complete``), the twin is not ended but parked with
         ``keep.state``, and the next loop whose ``keep.token()`` equals the
-        parked one resumes it (``keep.resume(*state, *keep.args)`` in the
+        parked one, or whose ``keep.patch`` brings the parked state to its
+        own, resumes it (``keep.resume(*state, patch, *keep.args)`` in the
         twin) instead of forking again: the page faults that follow a fork
         are paid once per animation, not once per frame. Otherwise the twin
         is ended when the block ends, in both processes."""
@@ -151,11 +156,18 @@ class Workers:
         twin = None
         parked, self._parked = self._parked, None
         if parked is not None:
-            if use and keep is not None and parked[1] is not None and parked[1] == keep.token() \
-                    and parked[0].resume(keep.resume, keep.args):
-                twin = parked[0]
+            parked_twin, parked_token, parked_state = parked
+            patch = False
+            if use and keep is not None and parked_token is not None:
+                token = keep.token()
+                if token == parked_token:
+                    patch = None
+                elif token is not None and keep.patch is not None:
+                    patch = keep.patch(parked_state, parked_token) or False
+            if patch is not False and parked_twin.resume(keep.resume, (patch,) + tuple(keep.args)):
+                twin = parked_twin
             else:
-                parked[0].end()
+                parked_twin.end()
         if twin is None and use:
             twin = forked.Twin.start(balance=self._balance)
         if twin is None:
@@ -171,7 +183,7 @@ class Workers:
                 twin.serve(keep.state)      # never returns
             if completed and twin.pid is not None:
                 twin.park()
-                self._parked = (twin, keep.token())
+                self._parked = (twin, keep.token(), keep.state)
             else:
                 twin.end()      # the twin exits here
 

@@ -7,6 +7,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from . import scene_patch
 from .camera import PixelFilter
 from .film import Film
 from .integrators.path import camera_pass
@@ -52,7 +53,8 @@ def render_frame(ctx, settings, frame=0, on_sample=None, should_stop=None):
     n = w * h
     # A second process on Linux (core/forked.py), kept for the next frame of
     # an animation if the scene changed only its camera.
-    keep = Continuation(lambda: _continuation_token(ctx), (ctx,), _resume_path, (scene.camera, settings, frame))
+    keep = Continuation(lambda: _continuation_token(ctx), (ctx,), _resume_path, (scene.camera, settings, frame),
+                        patch=lambda state, token: _patch(state[0], ctx, token))
     with ctx.workers.twin(n, keep) as lead:
         for s in range(settings.samples):
             color = np.zeros((n, 3), np.float32)
@@ -100,9 +102,11 @@ def render_restir(ctx, restir, settings, frame, frames=1, fresh=False, on_frame=
     result = None
     scene = ctx.scene
     # The twin process (core/forked.py) goes on into the next frame's loop of
-    # an animation if the scene changed only its camera since.
+    # an animation if the scene changed only its camera since, or objects
+    # moved (core/scene_patch.py).
     keep = Continuation(lambda: _continuation_token(ctx, restir), (ctx, restir), _resume_restir,
-                        (scene.camera, settings, frame, frames, fresh))
+                        (scene.camera, settings, frame, frames, fresh),
+                        patch=lambda state, token: _patch(state[0], ctx, token, restir))
     with ctx.workers.twin(scene.width * scene.height, keep) as lead:
         for i in range(max(1, frames)):
             if lead and should_stop is not None and should_stop():
@@ -134,15 +138,35 @@ def _continuation_token(ctx, restir=None):
     counters (Scene.versions: geometry, lighting) and image settings are
     unchanged, and the same ReSTIR state (frames rendered, history); the
     camera may differ (it is sent). None (never) for scenes without change
-    counters."""
+    counters. Its last items are _fixed_token's, then the structure's edits."""
     s = ctx.scene
     if s.versions is None:
         return None
-    token = (id(ctx.accel), id(ctx.lights), ctx.eps, tuple(s.versions), s.width, s.height,
-             s.filter_width, getattr(s, "film_transparent", None))
+    return (id(ctx.accel), id(ctx.lights), ctx.eps, tuple(s.versions)) + _fixed_token(ctx, restir) \
+        + (scene_patch.accel_updates(ctx),)
+
+
+def _fixed_token(ctx, restir):
+    """The part of the token a ScenePatch cannot bring the twin to: the
+    acceleration structure under any wrapper, the image settings and the
+    ReSTIR state."""
+    s = ctx.scene
+    token = (id(scene_patch.bare(ctx.accel)), s.width, s.height, s.filter_width,
+             getattr(s, "film_transparent", None))
     if restir is not None:
         token += (id(restir), restir.frames, id(restir.history), restir.keep_history)
     return token
+
+
+def _patch(old_ctx, ctx, old_token, restir=None):
+    """(parent) The ScenePatch for a twin parked with old_ctx and old_token
+    to go on with ctx, or None (it is then forked anew)."""
+    if ctx.scene.versions is None or old_token is None:
+        return None
+    fixed = _fixed_token(ctx, restir)
+    if old_token[-1 - len(fixed):-1] != fixed:
+        return None
+    return scene_patch.make(old_ctx, ctx, old_token[-1])
 
 
 def _with_camera(ctx, camera):
@@ -151,16 +175,22 @@ def _with_camera(ctx, camera):
     return dataclasses.replace(ctx, scene=scene)
 
 
-def _resume_path(ctx, camera, settings, frame):
-    """(in the twin) The next render_frame from the twin's copies."""
+def _resume_path(ctx, patch, camera, settings, frame):
+    """(in the twin) The next render_frame from the twin's copies (brought
+    to the leader's scene by ``patch`` if not None)."""
+    if patch is not None:
+        ctx = scene_patch.apply(ctx, patch)
     ctx = _with_camera(ctx, camera)
     render_frame(ctx, settings, frame)
     return (ctx,)
 
 
-def _resume_restir(ctx, restir, camera, settings, frame, frames, fresh):
+def _resume_restir(ctx, restir, patch, camera, settings, frame, frames, fresh):
     """(in the twin) The next loop of render_restir from the twin's copies,
-    with the leader's new camera; returns the state for the loop after."""
+    with the leader's new camera (and scene, by ``patch`` if not None);
+    returns the state for the loop after."""
+    if patch is not None:
+        ctx = scene_patch.apply(ctx, patch)
     ctx = _with_camera(ctx, camera)
     render_restir(ctx, restir, settings, frame, frames, fresh)
     return ctx, restir

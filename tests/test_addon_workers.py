@@ -1,6 +1,7 @@
 """Two workers in the add-on's renders (core/forked.py on Linux): an
 animation rendered on two workers gives the frames of one worker, and keeps
-its twin process from frame to frame while only the camera moves."""
+its twin process from frame to frame while the camera and objects move
+(core/scene_patch.py)."""
 
 import numpy as np
 import pytest
@@ -66,8 +67,31 @@ def test_two_workers_render_the_frames_of_one(addon, reports, tmp_path, mode, pe
     for f, (a, b) in enumerate(zip(one, two), start=1):
         assert np.isfinite(b).all() and b.mean() > 0.05, f
         assert np.array_equal(a, b), f"frame {f}"
-    # The camera alone moves over frames 1-4: one twin; the box then rises
-    # (a geometry change) and each frame forks one of its own.
+    # The camera alone moves over frames 1-4, then the box rises too (a
+    # geometry change, sent to the twin as a ScenePatch): one twin throughout,
+    # computing its share of every frame (a twin that failed would be ended).
     assert None not in pids
-    assert len(set(pids[:4])) == 1 and pids[4] != pids[3] and pids[5] != pids[4], pids
+    assert len(set(pids)) == 1, pids
+    assert reports.of("ERROR") == []
+
+
+def test_a_twin_that_cannot_follow_leaves_the_frame_to_the_parent(addon, reports, tmp_path, monkeypatch):
+    """A twin whose copy of the scene cannot be brought to the parent's
+    (scene_patch.apply fails in it) exits; the parent renders those frames
+    alone, the same images, and forks a new twin for the frame after."""
+    import importlib
+    scene_patch = importlib.import_module(addon.__name__ + ".core.scene_patch")    # the add-on's copy
+    scene = animation(tmp_path, "RESTIR_BIASED", False)
+    one, _ = render(addon, scene, tmp_path, 1)
+
+    def fail(ctx, patch):
+        raise RuntimeError("the twin's scene differs from the parent's")
+
+    monkeypatch.setattr(scene_patch, "apply", fail)
+    two, pids = render(addon, scene, tmp_path, 2)
+    for f, (a, b) in enumerate(zip(one, two), start=1):
+        assert np.array_equal(a, b), f"frame {f}"
+    # Frames 1-4 move the camera only (no patch); frame 5's patch fails: the
+    # parent goes on alone and parks nothing; frame 6 forks anew.
+    assert len(set(pids[:4])) == 1 and pids[4] is None and pids[5] not in (None, pids[0]), pids
     assert reports.of("ERROR") == []
