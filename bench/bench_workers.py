@@ -3,7 +3,9 @@
     .venv/bin/python bench/bench_workers.py [--frames 9] [--repeats 2] [--scenes room,slit,...]
 
 Each corpus file (example_blends/corpus_*.blend: 320x180, its own pixel
-filter and Cycles' bounce limits, its moving camera) is rendered as an
+filter and Cycles' bounce limits, its moving camera), and the quick start's
+room ("animated": example_blends/room_animated.blend, a box sliding into the
+sun while the camera moves: objects move every frame), is rendered as an
 animation through ``bpy.ops.render.render(animation=True)`` with Render >
 Performance > Threads fixed at 1, then at 2 (on Linux the second worker is a
 twin process, core/forked.py), in the ReSTIR biased mode (one frame of
@@ -23,7 +25,8 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from bench_common import ROOT, load_addon, render_frames  # noqa: E402
 
-SCENES = ("room", "slit", "glossy", "courtyard", "emitters")
+SCENES = ("room", "slit", "glossy", "courtyard", "emitters", "animated")
+FILES = {"animated": "room_animated.blend"}     # the others: corpus_<name>.blend
 MODES = (("RESTIR_BIASED", "ReSTIR biased"), ("PATH", "path tracing"))
 
 
@@ -37,14 +40,14 @@ def main():
     args = ap.parse_args()
     load_addon()
 
-    print(f"corpus at 320x180, frames 1-{args.frames}, {args.repeats} repeats, ReSTIR warm-up {args.warmup}, "
+    print(f"320x180, frames 1-{args.frames}, {args.repeats} repeats, ReSTIR warm-up {args.warmup}, "
           f"path tracing {args.pt_samples} spp; ms per frame (medians)\n")
     print("| scene | mode | first frame, 1 worker | 2 workers | speed-up | later frames, 1 worker | "
           "2 workers | speed-up |")
     print("|---|---|---:|---:|---:|---:|---:|---:|")
     ups = {"first": [], "later": []}
     for name in args.scenes.split(","):
-        blend = ROOT / "example_blends" / f"corpus_{name}.blend"
+        blend = ROOT / "example_blends" / FILES.get(name, f"corpus_{name}.blend")
         for mode, label in MODES:
             first = {1: [], 2: []}
             later = {1: [], 2: []}
