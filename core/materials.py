@@ -60,6 +60,12 @@ class SceneShading:
                     self.transparent_ids.add(i)
                 if any(node.kind == "HOLDOUT" for node in graph.nodes):
                     self.holdout_ids.add(i)
+        negative = np.nonzero((self.emission < 0).any(axis=1))[0] if len(self.emission) else []
+        for i in negative:
+            # Cycles subtracts such light; here an emitter's negative channels emit nothing.
+            name = scene.materials.names[i] if i < len(scene.materials.names) else str(i)
+            warn(f"Material '{name}': negative emission is not supported; it emits no light")
+        np.maximum(self.emission, 0.0, out=self.emission)
         self.table = table
         self.varying = [i for i, s in enumerate(self.compiled) if s is not None]
 

@@ -351,6 +351,17 @@ def test_light_without_shadows_is_exported(addon):
     assert not [w for w in s.warnings if "Cast Shadow" in w], s.warnings
 
 
+def test_negative_light_power_emits_nothing_and_says_so(addon):
+    """Cycles subtracts the light of a negative power; the engine leaves the
+    light out and warns."""
+    fresh()
+    add_light("sink", "POINT", location=(0, 0, 1), energy=-500.0)
+    s = export(addon)
+    assert np.all(s.lights.power == 0)
+    assert [w for w in s.warnings if "negative power" in w] == [
+        "Light 'sink': negative power is not supported; the light emits nothing"], s.warnings
+
+
 # ---------------------------------------------------------------- world
 
 def test_ray_visibility_per_object(addon):

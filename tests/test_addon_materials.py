@@ -179,3 +179,15 @@ def test_tangents_follow_the_instance(addon):
     s = export(addon)
     t = s.corner_data["tangent:"]
     np.testing.assert_allclose(t[..., :3].reshape(-1, 3), np.tile([0, 1, 0], (t.shape[0] * 3, 1)), atol=1e-5)
+
+
+def test_negative_emission_emits_nothing_and_says_so(addon):
+    """Cycles subtracts the light of a negative emission strength; the engine
+    leaves it out (the emitter stays dark) and warns, once."""
+    fresh()
+    mat = material("sink", "ShaderNodeEmission", Color=(1, 0.5, 0.25, 1), Strength=-3.0)
+    add_mesh("sink", *QUAD).data.materials.append(mat)
+    s = export(addon)
+    np.testing.assert_allclose(row(s, "sink")["emission"], 0)
+    assert [w for w in s.warnings if "negative emission" in w] == [
+        "Material 'sink': negative emission is not supported; it emits no light"], s.warnings

@@ -57,6 +57,10 @@ def light_row(light_object, matrix, warn):
         if spread < np.pi - 1e-4:
             warn(f"Light '{name}': area light spread below 180 degrees is not supported")
     row["shadowless"] = not bool(getattr(light, "use_shadow", True))
+    if float(light.energy) < 0:
+        # Cycles subtracts the light of a negative power; it is left out here.
+        warn(f"Light '{name}': negative power is not supported; the light emits nothing")
+        row["power"] = np.zeros(3)
     if getattr(light, "use_temperature", False):
         row["power"] = row["power"] * blackbody_rec709(np.float32(light.temperature)).ravel()
     if getattr(light, "use_nodes", False) and light.node_tree is not None:
