@@ -1,5 +1,5 @@
 """Texture nodes: Image Texture, Environment Texture, Checker, Gradient and
-the Sky Texture's fallback.
+the Sky Texture (its models in sky.py).
 
 Unlinked vectors default as in Cycles: Image Texture reads the active UV
 map, procedural textures read Generated coordinates, Environment Texture the
@@ -135,11 +135,18 @@ def gradient_texture(inp, geom, n, sh):
 @varying
 @node("TEX_SKY")
 def sky_texture(inp, geom, n, sh):
-    """Not Cycles' Nishita sky: a plain blue gradient over a darker ground, of
-    about the default sky's brightness, so scenes lit by a sky stay lit."""
-    sh.warn_once("sky", f"Sky Texture '{n.name}' is approximated by a gradient (no physical sky)")
+    """Blender's sky models (core/shader/sky.py); a type not modelled yet is a
+    plain blue gradient over a darker ground, of about a clear sky's
+    brightness, so scenes lit by it stay lit."""
+    from .sky import sky_model   # noqa: PLC0415 (tables are built on first use)
     d = inp.vector("Vector") if inp.linked("Vector") else (geom.position if geom.is_world else -geom.incoming)
     d = np.broadcast_to(f32(d), (geom.n, 3))
+    model = sky_model(n.props)
+    if model is not None:
+        return {"Color": model.radiance(d)}
+    sky_type = n.props.get("sky_type", "")
+    sh.warn_once(("sky", sky_type), f"Sky Texture '{n.name}': {sky_type.replace('_', ' ').title()} is "
+                                    f"approximated by a gradient (no physical sky)")
     z = np.clip(d[:, 2] / np.maximum(np.sqrt((d * d).sum(axis=1)), 1e-8), -1, 1)
     horizon, zenith, ground = f32((0.45, 0.55, 0.7)), f32((0.12, 0.25, 0.6)), f32((0.1, 0.1, 0.1))
     t = np.sqrt(np.maximum(z, 0))[:, None]
