@@ -44,6 +44,8 @@ CHUNK = 1 << 18             # directions per radiance_fn call while building the
 _MIN_SIN = 1e-7             # sin(theta) below this: a pole, pdf zero
 _TWO_PI2 = 2.0 * np.pi * np.pi
 _U_TOP = np.nextafter(1.0, 0.0)
+_SUN_PMF_MIN, _SUN_PMF_MAX = 0.05, 0.95   # a sun's share of the samples, kept from either end
+_SUN_POINTS = 256           # points over the disc that estimate its power
 
 
 def _unit_directions(d):
@@ -131,8 +133,12 @@ class Environment:
     the map. constant: (3,) radiance of a constant world (no map then).
     """
 
-    def __init__(self, radiance_fn, resolution=1024, constant=None):
+    def __init__(self, radiance_fn, resolution=1024, constant=None, sun=None):
         self._fn = radiance_fn
+        self.sun = None if sun is None or constant is not None else (
+            np.asarray(sun[0], np.float64) / np.linalg.norm(sun[0]), float(sun[1]))
+        self.sun_pmf = 0.0
+        self._has_map = False
         self.constant = None if constant is None else _sanitise(constant, 1)[0]
         self.width = max(2, int(resolution))
         self.height = max(1, self.width // 2)
@@ -181,18 +187,31 @@ class Environment:
         rgb = np.concatenate([self.radiance(uv_to_direction(np.tile(u_c, len(v_c[r:r + step])),
                                                             np.repeat(v_c[r:r + step], w)))
                               for r in range(0, h, step)]).reshape(h, w, 3)
+        sun_power = self._without_sun(rgb, u_c, v_c) if self.sun is not None else None
         sin_row = np.sin(np.pi * v_c)                                   # (H,)
         weight = rgb.astype(np.float64).mean(axis=2) * sin_row[:, None]  # |RGB| = RGB: sanitised
         row_sum = weight.sum(axis=1)
         total = float(row_sum.sum())
         self.is_black = not total > 0
         # Spherical mean of the radiance: sum L sin(theta) * (2 pi^2 / (W H)) / (4 pi).
-        self.mean_radiance = (np.einsum("hwc,h->c", rgb.astype(np.float64), sin_row)
-                              * np.pi / (2.0 * w * h)).astype(np.float32)
+        mean = np.einsum("hwc,h->c", rgb.astype(np.float64), sin_row) * np.pi / (2.0 * w * h)
         h_ = hashlib.sha1(b"map %d %d" % (w, h))
         h_.update(rgb.tobytes())
+        if sun_power is not None:
+            # The disc's share of the samples: its power against the map's.
+            mean += sun_power / (4.0 * np.pi)
+            sky_power = total * _TWO_PI2 / (w * h)
+            sun_lum = float(sun_power.mean())
+            if sun_lum > 0:
+                self.sun_pmf = float(np.clip(sun_lum / (sun_lum + sky_power), _SUN_PMF_MIN, _SUN_PMF_MAX)) \
+                    if total > 0 else 1.0
+                self.is_black = False
+            h_.update(np.float64([*self.sun[0], self.sun[1], *sun_power]).tobytes())
+        self.mean_radiance = mean.astype(np.float32)
         self._digest = h_.digest()
-        if self.is_black:
+        self._has_map = total > 0
+        if total <= 0:
+            self.sun_pmf = 1.0 if self.sun_pmf > 0 else 0.0
             return
         cond = np.zeros((h, w + 1))
         np.cumsum(weight, axis=1, out=cond[:, 1:])
@@ -209,6 +228,49 @@ class Environment:
         marg[-1] = 1.0
         self._marg = marg
         self._f_uv = (weight * (w * h / total)).astype(np.float32).ravel()
+
+    def _without_sun(self, rgb, u_c, v_c):
+        """Take the sun's disc out of the map (in place): texels whose centre
+        falls in it get the sky just beside it, as Cycles' map leaves the sun
+        out when a sky samples it apart. Returns the disc's power (3,): its
+        mean radiance over a spread of points times its solid angle."""
+        s, half = self.sun
+        w, h = self.width, self.height
+        _, v_sun, _ = direction_to_uv(s[None, :])
+        reach = 2.0 * half / np.pi * h + 2
+        rows = np.arange(max(0, int(v_sun[0] * h - reach)), min(h, int(v_sun[0] * h + reach) + 1))
+        d = uv_to_direction(np.tile(u_c, len(rows)), np.repeat(v_c[rows], w)).astype(np.float64)
+        inside = np.nonzero(d @ s > np.cos(half))[0]
+        if len(inside):
+            perp = d[inside] - np.outer(d[inside] @ s, s)
+            perp /= np.maximum(np.linalg.norm(perp, axis=1), 1e-12)[:, None]
+            beside = s * np.cos(1.5 * half) + perp * np.sin(1.5 * half)
+            rgb[rows[inside // w], inside % w] = self.radiance(beside)
+        k = np.arange(_SUN_POINTS) + 0.5
+        cos_t = 1.0 - k / _SUN_POINTS * (1.0 - np.cos(half))
+        phi = k * np.pi * (3.0 - np.sqrt(5.0))
+        points = self._cone_directions(cos_t, phi)
+        return self.radiance(points).astype(np.float64).mean(axis=0) * 2.0 * np.pi * (1.0 - np.cos(half))
+
+    def _cone_directions(self, cos_t, phi):
+        """Unit directions about the sun at polar cosines cos_t and angles phi (float64)."""
+        s = self.sun[0]
+        t = np.cross(s, [1.0, 0.0, 0.0] if abs(s[0]) < 0.9 else [0.0, 1.0, 0.0])
+        t /= np.linalg.norm(t)
+        b = np.cross(s, t)
+        sin_t = np.sqrt(np.maximum(1.0 - cos_t * cos_t, 0.0))
+        return ((sin_t * np.cos(phi))[:, None] * t + (sin_t * np.sin(phi))[:, None] * b
+                + cos_t[:, None] * s)
+
+    def _sun_pdf(self, d):
+        """(N,) density of the sun's cone sampling at directions d; inside is
+        angle < half measured as the sky measures it (2 atan2(|d - s|, |d + s|)
+        of the unit d), so a sample at the disc's rim is the sun's in both."""
+        s, half = self.sun
+        d = np.asarray(d, np.float64)
+        d = d / np.maximum(np.linalg.norm(d, axis=1), 1e-30)[:, None]
+        angle = 2.0 * np.arctan2(np.linalg.norm(d - s, axis=1), np.linalg.norm(d + s, axis=1))
+        return np.where(angle < half, 1.0 / (2.0 * np.pi * (1.0 - np.cos(half))), 0.0)
 
     # --- queries ----------------------------------------------------------------------
 
@@ -242,13 +304,41 @@ class Environment:
         u, v, sin_t = direction_to_uv(d)
         col = np.clip((u * self.width).astype(np.int64), 0, self.width - 1)
         row = np.clip((v * self.height).astype(np.int64), 0, self.height - 1)
-        return self._map_pdf(row, col, sin_t)
+        return self._mixed_pdf(d, row, col, sin_t)
+
+    def _mixed_pdf(self, d, row, col, sin_t):
+        """The map's density, mixed with the sun's cone where a sun is sampled apart."""
+        if self.sun_pmf <= 0:
+            return self._map_pdf(row, col, sin_t)
+        pdf = self.sun_pmf * self._sun_pdf(d)
+        if self.sun_pmf < 1 and self._has_map:
+            pdf += (1.0 - self.sun_pmf) * self._map_pdf(row, col, sin_t)
+        return pdf.astype(np.float32)
 
     def _map_pdf(self, row, col, sin_t):
         f = np.take(self._f_uv, row * self.width + col)
         pole = sin_t < _MIN_SIN
         pdf = f / (_TWO_PI2 * np.where(pole, 1.0, sin_t))
         return np.where(pole | ~np.isfinite(pdf), 0.0, pdf).astype(np.float32)
+
+    def _sample_map(self, u):
+        """Directions (N, 3) float32 drawn from the map by uniforms u (N, 2) in [0, 1)."""
+        w, h = self.width, self.height
+        # Row from the marginal CDF, then the column from that row's CDF.
+        row = np.clip(np.searchsorted(self._marg, u[:, 0], side="right") - 1, 0, h - 1)
+        lo, hi = self._marg[row], self._marg[row + 1]
+        dv = np.where(hi > lo, (u[:, 0] - lo) / np.where(hi > lo, hi - lo, 1.0), 0.5)
+        shift = 2.0 * row
+        pos = np.searchsorted(self._cond_flat, u[:, 1] + shift, side="right") - 1
+        col = np.clip(pos - row * (w + 1), 0, w - 1)
+        at = row * (w + 1) + col
+        c_lo = np.take(self._cond_flat, at) - shift
+        c_hi = np.take(self._cond_flat, at + 1) - shift
+        du = np.where(c_hi > c_lo, (u[:, 1] - c_lo) / np.where(c_hi > c_lo, c_hi - c_lo, 1.0), 0.5)
+        du = np.clip(du, 0.0, _U_TOP)
+        dv = np.clip(dv, 0.0, _U_TOP)
+        wi = uv_to_direction((col + du) / w, (row + dv) / h)
+        return wi, row, col
 
     def sample(self, u, n=None):
         """Directions drawn from uniforms u (N, 2) in [0, 1):
@@ -272,23 +362,30 @@ class Environment:
                 wi = to_world(square_to_cosine_hemisphere(u32), t, b, n).astype(np.float32)
                 pdf = cosine_hemisphere_pdf(dot(wi, n))
             return wi, pdf, self.radiance(wi)
-        w, h = self.width, self.height
-        # Row from the marginal CDF, then the column from that row's CDF.
-        row = np.clip(np.searchsorted(self._marg, u[:, 0], side="right") - 1, 0, h - 1)
-        lo, hi = self._marg[row], self._marg[row + 1]
-        dv = np.where(hi > lo, (u[:, 0] - lo) / np.where(hi > lo, hi - lo, 1.0), 0.5)
-        shift = 2.0 * row
-        pos = np.searchsorted(self._cond_flat, u[:, 1] + shift, side="right") - 1
-        col = np.clip(pos - row * (w + 1), 0, w - 1)
-        at = row * (w + 1) + col
-        c_lo = np.take(self._cond_flat, at) - shift
-        c_hi = np.take(self._cond_flat, at + 1) - shift
-        du = np.where(c_hi > c_lo, (u[:, 1] - c_lo) / np.where(c_hi > c_lo, c_hi - c_lo, 1.0), 0.5)
-        du = np.clip(du, 0.0, _U_TOP)
-        dv = np.clip(dv, 0.0, _U_TOP)
-        wi = uv_to_direction((col + du) / w, (row + dv) / h)
-        _, _, sin_t = direction_to_uv(wi)
-        pdf = self._map_pdf(row, col, sin_t)
+        if self.sun_pmf <= 0:
+            wi, row, col = self._sample_map(u)
+            _, _, sin_t = direction_to_uv(wi)
+            return wi, self._map_pdf(row, col, sin_t), self.radiance(wi)
+        else:
+            # Sun or map by u[:, 0], the choice's remainder reused as a uniform.
+            sun = u[:, 0] < self.sun_pmf
+            wi = np.empty((count, 3), np.float32)
+            row = np.zeros(count, np.int64)
+            col = np.zeros(count, np.int64)
+            if sun.any():
+                us = u[sun]
+                half = self.sun[1]
+                cos_t = 1.0 - (us[:, 0] / self.sun_pmf) * (1.0 - np.cos(half))
+                wi[sun] = self._cone_directions(cos_t, 2.0 * np.pi * us[:, 1])
+            if (~sun).any():
+                um = u[~sun]
+                um[:, 0] = np.clip((um[:, 0] - self.sun_pmf) / (1.0 - self.sun_pmf), 0.0, _U_TOP)
+                wi[~sun], row[~sun], col[~sun] = self._sample_map(um)
+        u_, v_, sin_t = direction_to_uv(wi)
+        # Cone samples find their texel; map samples keep the texel they drew.
+        row = np.where(sun, np.clip((v_ * self.height).astype(np.int64), 0, self.height - 1), row)
+        col = np.where(sun, np.clip((u_ * self.width).astype(np.int64), 0, self.width - 1), col)
+        pdf = self._mixed_pdf(wi, row, col, sin_t)
         return wi, pdf, self.radiance(wi)
 
 

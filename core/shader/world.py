@@ -2,9 +2,11 @@
 
 A graph that does not depend on the direction becomes a constant world; any
 other is evaluated on whole batches of directions, for the importance map at
-build time and for every ray that escapes. The map's resolution follows
-Cycles' automatic choice: the width of the largest image the world reads
-(at most MAX_RESOLUTION), else DEFAULT_RESOLUTION.
+build time and for every ray that escapes. A sky's sun disc is sampled
+apart from the map (Environment's ``sun``), as Cycles' sun guiding does.
+The map's resolution follows Cycles' automatic choice: the width of the
+largest image the world reads (at most MAX_RESOLUTION), else
+DEFAULT_RESOLUTION.
 """
 
 import numpy as np
@@ -33,8 +35,23 @@ def world_environment(graph, images=None, warn=None):
     widths = [img.width for key in _image_keys(graph) for s in [(images or {}).get(key)] if s is not None
               for img in s.tiles.values()]
     resolution = min(max(widths), MAX_RESOLUTION) if widths else DEFAULT_RESOLUTION
-    env = Environment(radiance, resolution=resolution)
+    env = Environment(radiance, resolution=resolution, sun=_sun(graph))
     return None if env.is_black else env
+
+
+def _sun(graph):
+    """(direction, half angle) of the first sky's sun disc, which the
+    environment samples apart from its map (a disc half a degree wide is
+    smaller than a texel: the map alone would find it by chance, a firefly
+    each time). Only a sky read along the ray itself (no Vector linked) puts
+    its sun where its parameters say."""
+    from .sky import sky_model   # noqa: PLC0415
+    for n in graph.nodes:
+        if n.kind == "TEX_SKY" and "Vector" not in n.inputs:
+            model = sky_model(n.props)
+            if model is not None and getattr(model, "has_sun", False):
+                return model.sun_direction, model.diameter / 2
+    return None
 
 
 def _image_keys(graph):
