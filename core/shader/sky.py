@@ -1,5 +1,7 @@
 """Blender's Sky Texture: the node's settings to radiance, as Cycles renders it.
 
+Preetham and Hosek-Wilkie are closed forms (core/shader/sky_analytic.py).
+
 Single and Multiple Scattering (core/shader/sky_scattering.py builds their
 tables) are read as Cycles' kernel reads them (svm sky): the ray's azimuth
 from the sun picks the column, its elevation the row through the table's
@@ -147,9 +149,21 @@ def scattering_params(props):
             float(props.get("ozone_density", 1.0)))
 
 
+@lru_cache(maxsize=16)
+def _analytic_sky(sky_type, sun_direction, turbidity, ground_albedo):
+    from .sky_analytic import HosekWilkieSky, PreethamSky   # noqa: PLC0415
+    if sky_type == "PREETHAM":
+        return PreethamSky(sun_direction, turbidity)
+    return HosekWilkieSky(sun_direction, turbidity, ground_albedo)
+
+
 def sky_model(props):
     """The sky a Sky Texture node of settings props renders, or None where
     the type is not modelled (the caller falls back)."""
-    if props.get("sky_type", "MULTIPLE_SCATTERING") in SCATTERING:
+    sky_type = props.get("sky_type", "MULTIPLE_SCATTERING")
+    if sky_type in SCATTERING:
         return _scattering_sky(scattering_params(props))
+    if sky_type in ("PREETHAM", "HOSEK_WILKIE"):
+        return _analytic_sky(sky_type, tuple(float(x) for x in props.get("sun_direction", (0.0, 0.0, 1.0))),
+                             float(props.get("turbidity", 2.2)), float(props.get("ground_albedo", 0.3)))
     return None
