@@ -57,13 +57,11 @@ class ScatteringSky:
         self.sun_disc = bool(sun_disc)
         self.intensity = float(sun_intensity)
         self.earth_angle = -float(scattering.earth_intersection_angle(altitude))
+        self.table = _table(self.multiple, self.elevation, altitude, air, aerosol, ozone)
         if self.multiple:
-            self.table = scattering.multiple_scattering_table(self.elevation, altitude, air, aerosol, ozone)
             sun = scattering.multiple_scattering_sun(self.elevation, self.diameter, altitude, air, aerosol, ozone)
         else:
-            self.table = scattering.single_scattering_table(self.elevation, altitude, air, aerosol, ozone)
             sun = scattering.single_scattering_sun(self.elevation, self.diameter, altitude, air, aerosol)
-        self.table = self.table.astype(np.float32)
         self.sun_xyz = sun                  # (2, 3) bottom and top of the disc
         e, r = self.elevation, self.rotation
         # Cycles' spherical_to_direction(elevation - pi/2, rotation - pi/2).
@@ -132,6 +130,14 @@ def _angle(d, s):
     length = np.sqrt((d * d).sum(axis=1))
     u = d / np.where(length > 0, length, 1.0)[:, None]
     return 2 * np.arctan2(np.sqrt(((u - s) ** 2).sum(axis=1)), np.sqrt(((u + s) ** 2).sum(axis=1)))
+
+
+@lru_cache(maxsize=8)
+def _table(multiple, elevation, altitude, air, aerosol, ozone):
+    """The sky's table (float32), shared by skies that differ only in their
+    sun's rotation, size or intensity."""
+    build = scattering.multiple_scattering_table if multiple else scattering.single_scattering_table
+    return build(elevation, altitude, air, aerosol, ozone).astype(np.float32)
 
 
 @lru_cache(maxsize=16)
