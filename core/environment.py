@@ -24,6 +24,15 @@ total (mean one), and since d(omega) = 2 pi^2 sin(theta) du dv,
 with sin(theta) of the direction itself; it is zero where sin(theta) vanishes
 (the poles, a set of measure zero).
 
+A sky with a sun disc (``sun``: its direction and angular radius, from
+core/shader/world.py) is sampled as Cycles' sun guiding does: the disc,
+half a degree wide, is smaller than a texel and the map would find it only
+by chance, a firefly each time. Texels whose centre lies in the disc get the
+sky just beside it, and a share ``sun_pmf`` of the samples (the disc's power
+against the map's, kept within [0.05, 0.95]) is drawn uniformly in the
+disc's cone; the density is the mixture of both, so a BSDF ray that finds
+the disc is weighed against it too.
+
 A constant world has no map. Its light sampler is cosine-weighted about the
 receiver's normal when one is given (then, for a Lambert surface under an open
 sky, light sampling and BSDF sampling have the same density and their MIS
