@@ -80,10 +80,10 @@ class ScatteringSky:
         """Bilinear table lookup, clamped at the edges (Cycles' linear, extend)."""
         t = self.table
         h, w = t.shape[:2]
-        x = u * w - 0.5
-        y = v * h - 0.5
+        x = u * np.float32(w) - np.float32(0.5)
+        y = v * np.float32(h) - np.float32(0.5)
         x0, y0 = np.floor(x), np.floor(y)
-        fx, fy = (x - x0).astype(np.float32)[:, None], (y - y0).astype(np.float32)[:, None]
+        fx, fy = (x - x0)[:, None], (y - y0)[:, None]
         x0, y0 = x0.astype(np.int64), y0.astype(np.int64)
         x1, y1 = np.clip(x0 + 1, 0, w - 1), np.clip(y0 + 1, 0, h - 1)
         x0, y0 = np.clip(x0, 0, w - 1), np.clip(y0, 0, h - 1)
@@ -95,34 +95,43 @@ class ScatteringSky:
 
     def radiance(self, d):
         """(N, 3) float32 linear Rec.709 radiance toward directions d (N, 3)."""
-        d = np.asarray(d, np.float64).reshape(-1, 3)
-        z = np.clip(d[:, 2], -1.0, 1.0)
-        elev = np.pi / 2 - np.arccos(z)
+        d = np.asarray(d, np.float32).reshape(-1, 3)
+        length = np.sqrt(np.einsum("ij,ij->i", d, d))
+        z = np.clip(d[:, 2] / np.where(length > 0, length, 1), -1.0, 1.0)
+        elev = np.arcsin(z)
         phi = np.arctan2(d[:, 1], d[:, 0])
-        u = np.mod((-phi - np.pi / 2 + self.rotation) / (2 * np.pi), 1.0)
-        v = np.sqrt(np.abs(elev) / (np.pi / 2)) * np.sign(elev) * 0.5 + 0.5
+        u = np.mod((-phi - np.float32(np.pi / 2) + np.float32(self.rotation)) / np.float32(2 * np.pi), 1.0)
+        v = np.sqrt(np.abs(elev) / np.float32(np.pi / 2)) * np.sign(elev) * 0.5 + 0.5
         below = np.zeros(len(d), bool) if self.multiple else z < 0
         if below.any():
-            v = np.where(below, 0.508, v)
+            v = np.where(below, np.float32(0.508), v)
         rgb = _to_rgb(self._lookup(u, v))
         if below.any():
-            fade = np.where(z < -0.4, 0.0, np.maximum(1.0 + 2.5 * z, 0.0) ** 3)
-            rgb = np.where(below[:, None], rgb * fade[:, None].astype(np.float32), rgb)
+            fade = np.where(z < -0.4, 0.0, np.maximum(1.0 + 2.5 * z, 0.0) ** 3).astype(np.float32)
+            rgb = np.where(below[:, None], rgb * fade[:, None], rgb)
         if self.sun_disc:
             half = self.diameter / 2
-            angle = _angle(d, self.sun_direction)
-            disc = (angle < half) & (elev > self.earth_angle) & ~below
-            if disc.any():
-                i = np.nonzero(disc)[0]
-                y = ((elev[i] - self.elevation) / self.diameter + 0.5)[:, None]
+            # Candidates by a loose cosine test, then the precise angle (float64).
+            near = np.nonzero(d @ self.sun_direction.astype(np.float32) > np.cos(2 * half) * length)[0]
+            if len(near):
+                angle = _angle(d[near].astype(np.float64), self.sun_direction)
+                e = np.arcsin(np.clip(z[near].astype(np.float64), -1, 1))
+                disc = (angle < half) & (e > self.earth_angle) & ~below[near]
+                i, angle, e = near[disc], angle[disc], e[disc]
+                y = ((e - self.elevation) / self.diameter + 0.5)[:, None]
                 xyz = self.sun_xyz[0] + y * (self.sun_xyz[1] - self.sun_xyz[0])
-                limb = 1.0 - LIMB * (1.0 - np.sqrt(np.maximum(1.0 - (angle[i] / half) ** 2, 0.0)))
-                rgb[i] += (_to_rgb(xyz) * (limb * self.intensity)[:, None]).astype(np.float32)
-        return rgb.astype(np.float32)
+                limb = 1.0 - LIMB * (1.0 - np.sqrt(np.maximum(1.0 - (angle / half) ** 2, 0.0)))
+                rgb[i] += _to_rgb(xyz) * (limb * self.intensity).astype(np.float32)[:, None]
+        return rgb
+
+
+_M = XYZ_TO_REC709.astype(np.float32)
 
 
 def _to_rgb(xyz):
-    return np.maximum(np.asarray(xyz) @ XYZ_TO_REC709.T.astype(np.float32), 0.0).astype(np.float32)
+    xyz = np.asarray(xyz, np.float32)
+    x, y, z = xyz[:, 0], xyz[:, 1], xyz[:, 2]
+    return np.maximum(np.stack([_M[r, 0] * x + _M[r, 1] * y + _M[r, 2] * z for r in range(3)], axis=1), 0.0)
 
 
 def _angle(d, s):
