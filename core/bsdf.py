@@ -106,9 +106,9 @@ def principled_lobes(base, metallic, roughness, ior, level):
     dielectric share a Fresnel f0 of its IOR (scaled by 2 x Specular IOR
     Level) layered over a Lambert base; ``at_view`` takes from that base what
     the layer reflects at the viewing angle."""
-    metallic = np.clip(metallic, 0, 1)[..., None]
+    metallic, base = np.clip(metallic, 0, 1)[..., None], np.maximum(base, 0)   # (Cycles: metals' f0 at most 1)
     f0_dielectric = np.minimum(((ior - 1) / (ior + 1)) ** 2 * 2.0 * np.maximum(level, 0), 1.0)[..., None]
-    f0 = (1 - metallic) * f0_dielectric + metallic * base
+    f0 = (1 - metallic) * f0_dielectric + metallic * np.minimum(base, 1)
     diffuse = (1 - metallic) * base
     return diffuse, f0, np.clip(roughness, 0, 1), f0_dielectric[..., 0]
 

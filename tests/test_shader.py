@@ -156,8 +156,12 @@ def test04_unknown_and_failing_nodes_warn_once_and_give_defaults():
 def test05_principled_constant_graph_equals_the_material_table():
     rows = [{"base_color": (0.8, 0.3, 0.1), "metallic": 0.0, "roughness": 0.4, "ior": 1.45, "specular": 0.5},
             {"base_color": (0.9, 0.6, 0.2), "metallic": 1.0, "roughness": 0.2, "ior": 1.5, "specular": 0.5},
-            {"base_color": (0.5, 0.5, 0.5), "metallic": 0.3, "roughness": 0.7, "ior": 2.0, "specular": 0.8}]
+            {"base_color": (0.5, 0.5, 0.5), "metallic": 0.3, "roughness": 0.7, "ior": 2.0, "specular": 0.8},
+            # Out of range, as Cycles takes it: the metal's f0 clamped to [0, 1], the diffuse only to >= 0.
+            {"base_color": (5.0, -1.0, 0.5), "metallic": 1.0, "roughness": 0.3, "ior": 1.5, "specular": 0.5},
+            {"base_color": (2.0, -1.0, 0.5), "metallic": 0.0, "roughness": 0.3, "ior": 1.5, "specular": 0.5}]
     table = bsdf.material_lobes(Materials.from_list(rows))
+    assert np.allclose(table.f0[3], (1.0, 0.0, 0.5)) and np.allclose(table.diffuse[4], (2.0, 0.0, 0.5))
     for i, r in enumerate(rows):
         node_ = Node("BSDF_PRINCIPLED", {"Base Color": r["base_color"], "Metallic": r["metallic"],
                                          "Roughness": r["roughness"], "IOR": r["ior"],

@@ -78,12 +78,15 @@ def principled(inp, geom, n, sh):
     dielectric = 1 - metallic
     f0_d = np.minimum(_f0_from_ior(ior) * 2 * level, 1.0)
     f0_d = _c(f0_d) * spec_tint
-    specular = _c(metallic) * base + _c(dielectric * (1 - trans)) * f0_d
+    # As Cycles: a base colour above one brightens the diffuse part only; the
+    # metal's f0 and the glass's tint take it clamped to one.
+    clamped = np.minimum(base, 1.0)
+    specular = _c(metallic) * clamped + _c(dielectric * (1 - trans)) * f0_d
     diffuse = _c(dielectric * (1 - trans)) * base      # under the specular layer
     # The glass part reflects by its own Fresnel (tinted like the specular
     # layer) and refracts tinted by sqrt(base colour): through a closed
     # object, in and out, the base colour (Cycles' Principled convention).
-    transmission = _c(dielectric * trans) * np.sqrt(base)
+    transmission = _c(dielectric * trans) * np.sqrt(clamped)
     trans_refl = _c(dielectric * trans) * spec_tint
     below = 1.0
     if np.any(coat > 0):
