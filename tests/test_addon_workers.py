@@ -95,3 +95,24 @@ def test_a_twin_that_cannot_follow_leaves_the_frame_to_the_parent(addon, reports
     # parent goes on alone and parks nothing; frame 6 forks anew.
     assert len(set(pids[:4])) == 1 and pids[4] is None and pids[5] not in (None, pids[0]), pids
     assert reports.of("ERROR") == []
+
+
+def test_a_material_animated_with_objects_renders_the_frames_of_one(addon, reports, tmp_path):
+    """Frames whose material changes as the box moves (new material rows and
+    compiled graphs, sent to the twin with the moved geometry) give the
+    images of one worker."""
+    scene = animation(tmp_path, "RESTIR_BIASED", False)
+    import bpy
+    mat = bpy.data.objects["Box"].active_material
+    bsdf = next(n for n in mat.node_tree.nodes if n.type in ("BSDF_DIFFUSE", "BSDF_PRINCIPLED"))
+    color = bsdf.inputs["Color" if bsdf.type == "BSDF_DIFFUSE" else "Base Color"]
+    for frame, value in ((1, (0.8, 0.2, 0.1, 1)), (6, (0.1, 0.3, 0.9, 1))):
+        color.default_value = value
+        color.keyframe_insert("default_value", frame=frame)
+    one, _ = render(addon, scene, tmp_path, 1)
+    two, pids = render(addon, scene, tmp_path, 2)
+    for f, (a, b) in enumerate(zip(one, two), start=1):
+        assert np.isfinite(b).all() and b.mean() > 0.05, f
+        assert np.array_equal(a, b), f"frame {f}"
+    assert not np.array_equal(one[0], one[-1])
+    assert reports.of("ERROR") == []
