@@ -31,6 +31,14 @@ def _compact(vertices, triangles):
     """(vertices used by triangles, triangles re-indexed into them)."""
     if len(triangles) == 0:
         return np.zeros((0, 3), np.float32), np.zeros((0, 3), np.int32)
+    if triangles.size * 8 < len(vertices):
+        # A few objects of a large scene (the dynamic part): sort their
+        # indices instead of marking and counting every vertex of the scene
+        # (the same vertices in the same order; a 1M-triangle scene spent
+        # 7.5 ms a frame here for one moving box).
+        used, local = np.unique(triangles.ravel(), return_inverse=True)
+        return (np.ascontiguousarray(np.take(vertices, used, axis=0), np.float32),
+                local.reshape(-1, 3).astype(np.int32))
     used = np.zeros(len(vertices), bool)
     used[triangles.ravel()] = True
     remap = np.cumsum(used, dtype=np.int64) - 1

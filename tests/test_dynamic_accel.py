@@ -214,3 +214,19 @@ def test08_interrupt(rng):
     plain.close()
     dyn.close()
     assert (dyn.intersect_closest(*rays(rng, 10)).prim == -1).all()
+
+
+@pytest.mark.parametrize("count", [3, 400, 30_000])
+def test_compact_keeps_used_vertices_in_order(rng, count):
+    """_compact (sorting a few objects' indices, or marking every vertex for
+    many) gives the vertices the triangles use, in index order, and the
+    triangles re-indexed into them."""
+    from core.dynamic_accel import _compact
+    v = rng.random((20_000, 3)).astype(np.float32)
+    t = rng.integers(0, len(v), (count, 3)).astype(np.int32)
+    used = np.zeros(len(v), bool)
+    used[t.ravel()] = True
+    cv, ct = _compact(v, t)
+    np.testing.assert_array_equal(cv, v[used])
+    np.testing.assert_array_equal(ct, (np.cumsum(used) - 1)[t])
+    assert ct.dtype == np.int32 and np.array_equal(cv[ct], v[t])
