@@ -140,7 +140,11 @@ class Environment:
     expensive (a node graph), so it is called on whole arrays: once per batch
     of directions, and over every texel centre (in chunks of CHUNK) to build
     the map. constant: (3,) radiance of a constant world (no map then).
+    camera_radiance: what camera rays see instead, where that differs (a
+    world graph reading Light Path; core/shader/world.py), else None.
     """
+
+    camera_radiance = None
 
     def __init__(self, radiance_fn, resolution=1024, constant=None, sun=None):
         self._fn = radiance_fn

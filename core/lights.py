@@ -257,10 +257,13 @@ class LightSet:
             pdf = (pdf * np.float32(self.world_pmf)).astype(np.float32)
         return pdf
 
-    def world_radiance(self, d):
-        """(N, 3) radiance of the world arriving from directions d (zero without one)."""
+    def world_radiance(self, d, camera=False):
+        """(N, 3) radiance of the world arriving from directions d (zero
+        without one); camera: as camera rays see it (a world reading Light Path)."""
         if self.environment is None:
             return np.zeros((len(d), 3), np.float32)
+        if camera and getattr(self.environment, "camera_radiance", None) is not None:
+            return self.environment.camera_radiance(d)
         return self.environment.radiance(d)
 
     def emitted_along(self, o, d, tmax, pdf_bsdf=None, kinds=None):

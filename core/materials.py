@@ -68,6 +68,9 @@ class SceneShading:
         np.maximum(self.emission, 0.0, out=self.emission)
         self.table = table
         self.varying = [i for i, s in enumerate(self.compiled) if s is not None]
+        # Graphs reading Light Path: camera rays see them evaluated as camera rays.
+        self.camera_ids = [i for i in self.varying
+                           if any(node.kind == "LIGHT_PATH" for node in shaders[i].nodes)]
 
 
 def params_of(closure, n):
@@ -148,6 +151,27 @@ def surface_params(scene, surf, camera_ray=False):
                 params.smooth_n = surf.ns.copy()
             scatter(surf.ns, rows, ns)
     return params
+
+
+def camera_emission(scene, surf, lights):
+    """(N, 3) emission camera rays see at the hits ``surf``: the emissive
+    triangles' (graphs at their centres, as other rays see them), except for
+    materials whose graph reads Light Path (an emitter seen only by the
+    camera, or hidden from it): their graph at each hit, as a camera ray."""
+    n = len(surf.prim)
+    em = np.zeros((n, 3), np.float32)
+    if len(lights.tri_index):
+        em += lights.triangle_emission(surf.prim, surf.front)
+    sh = shading(scene)
+    for m in sh.camera_ids:
+        rows = np.nonzero(surf.material == m)[0]
+        if len(rows):
+            closure = sh.compiled[m].closure(SurfaceGeometry(scene, surf.subset(rows), True))
+            e = np.maximum(closure.get("emission", len(rows)), 0.0)
+            if not lights.two_sided:
+                e = e * surf.front[rows, None]
+            scatter(em, rows, e.astype(np.float32))
+    return em
 
 
 def _pass_probability(closure, n):

@@ -194,3 +194,48 @@ def test_negative_emission_emits_nothing_and_says_so(addon):
     np.testing.assert_allclose(row(s, "sink")["emission"], 0)
     assert [w for w in s.warnings if "negative emission" in w] == [
         "Material 'sink': negative emission is not supported; it emits no light"], s.warnings
+
+
+def _light_path_mix(tree, shader_0, shader_1, out):
+    """Mix Shader of shader_0 / shader_1 by Light Path > Is Camera Ray, into `out`."""
+    mix = tree.nodes.new("ShaderNodeMixShader")
+    path = tree.nodes.new("ShaderNodeLightPath")
+    tree.links.new(path.outputs["Is Camera Ray"], mix.inputs[0])
+    tree.links.new(shader_0.outputs[0], mix.inputs[1])
+    tree.links.new(shader_1.outputs[0], mix.inputs[2])
+    tree.links.new(mix.outputs[0], out)
+
+
+@pytest.mark.parametrize("mode", ["PATH", "RESTIR_BIASED", "RESTIR_UNBIASED"])
+def test_light_path_is_camera_ray_seen_by_the_camera(addon, mode):
+    """An emitter only the camera sees (Is Camera Ray picks Emission over a
+    Diffuse BSDF) shows its emission and lights nothing; a world whose
+    background differs for the camera shows it and lights with the other."""
+    import bpy
+    from addon_util import add_mesh as add, camera, fresh as fresh_scene, rect, world
+    from blender_util import diffuse_material, render_image
+    scene = fresh_scene(32, 24, 4, mode)
+    camera()
+    w = world((0.5, 0.5, 0.5))
+    tree = w.node_tree
+    red = tree.nodes.new("ShaderNodeBackground")
+    red.inputs["Color"].default_value = (1, 0, 0, 1)
+    _light_path_mix(tree, tree.nodes["Background"], red, tree.nodes["World Output"].inputs["Surface"])
+    mat = bpy.data.materials.new("camera only")
+    t = mat.node_tree
+    t.nodes.remove(t.nodes["Principled BSDF"])
+    glow = t.nodes.new("ShaderNodeEmission")
+    glow.inputs["Strength"].default_value = 2.0
+    _light_path_mix(t, t.nodes.new("ShaderNodeBsdfDiffuse"), glow, t.nodes["Material Output"].inputs["Surface"])
+    add("Glow", *rect(-0.3, 0.3, -0.3, 0.3, 1.0), mat=mat)
+    add("Floor", *rect(-1, 1, -1, 1), mat=diffuse_material("grey", (0.8, 0.8, 0.8)))
+    img = render_image(scene)[..., :3]
+    assert np.isfinite(img).all()
+    np.testing.assert_allclose(img[12, 16], 2.0, rtol=0.02)          # the emitter, as the camera sees it
+    np.testing.assert_allclose(img[0, 0], (1, 0, 0), atol=1e-3)       # the camera's background
+    # The floor beside the emitter: lit by the grey world only (at most
+    # 0.8 x 0.5, less what the emitter's quad hides of the sky), neither by
+    # the emitter nor by the red background.
+    floor = img[12, 9]
+    assert 0.3 < floor.mean() < 0.41
+    assert abs(floor[0] - floor[2]) < 0.02

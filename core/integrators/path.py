@@ -149,16 +149,15 @@ def camera_pass(ctx, width, height, seed, frame, sample, max_bounces, pixel_filt
     color = ctx.lights.emitted_along(o, d, np.minimum(hits.t, tmax))
     miss = np.nonzero(~hits.hit)[0]
     if len(miss) and ctx.lights.environment is not None and not scene.film_transparent:
-        scatter_add(color, miss, ctx.lights.world_radiance(gather(d, miss)))
+        scatter_add(color, miss, ctx.lights.world_radiance(gather(d, miss), camera=True))
     depth = np.full(n, 1e10, np.float32)
     normal = np.zeros((n, 3), np.float32)
     albedo = np.zeros((n, 3), np.float32)
     surf, idx = surface_hits(scene, o, d, hits)
     if len(idx):
-        shading = ShadingFrame.at(scene, surf)
+        shading = ShadingFrame.at(scene, surf, camera_ray=True)
         light = radiance_from_surface(ctx, surf, seeds[idx], 0, max_bounces, shading)
-        if len(ctx.lights.tri_index):
-            light += ctx.lights.triangle_emission(surf.prim, surf.front)
+        light += materials.camera_emission(scene, surf, ctx.lights)
         scatter_add(color, idx, light)
         depth[idx] = view_depth(scene.camera, surf.p)
         scatter(normal, idx, surf.ns)

@@ -7,7 +7,7 @@ from types import SimpleNamespace
 
 import numpy as np
 
-from .. import samplers
+from .. import materials, samplers
 from ..camera import generate_rays, view_depth
 from ..integrators.base import ShadingFrame
 from ..interaction import SurfaceHits, surface_hits
@@ -183,9 +183,9 @@ def seen_directly(ctx, o, d, tmax, hits, surf, idx):
     emission = ctx.lights.emitted_along(o, d, np.minimum(hits.t, tmax))
     miss = np.nonzero(~hits.hit)[0]
     if len(miss) and ctx.lights.environment is not None and not ctx.scene.film_transparent:
-        scatter_add(emission, miss, ctx.lights.world_radiance(gather(d, miss)))
-    if len(idx) and len(ctx.lights.tri_index):
-        scatter_add(emission, idx, ctx.lights.triangle_emission(surf.prim, surf.front))
+        scatter_add(emission, miss, ctx.lights.world_radiance(gather(d, miss), camera=True))
+    if len(idx):
+        scatter_add(emission, idx, materials.camera_emission(ctx.scene, surf, ctx.lights))
     return emission
 
 
@@ -205,7 +205,7 @@ def trace_rows(ctx, seed, frame, pixel_filter, jitter, start, stop):
     depth = np.full(n, 1e10, np.float32)
     object_id = np.full(n, -1, np.int32)
     albedo = np.zeros((n, 3), np.float32)
-    frame_sh = ShadingFrame.at(scene, surf)
+    frame_sh = ShadingFrame.at(scene, surf, camera_ray=True)
     if len(idx):
         depth[idx] = view_depth(scene.camera, surf.p)
         object_id[idx] = np.take(scene.object_ids, surf.prim)

@@ -30,7 +30,7 @@ from types import SimpleNamespace
 
 import numpy as np
 
-from .. import samplers
+from .. import materials, samplers
 from ..interaction import surface_hits
 from ..parallel import concat_rows
 from ..rows import gather
@@ -99,8 +99,9 @@ def _mean_seen_on_workers(ctx, seed, frame, pixel_filter, pixels, samples):
 
 def _sides(scene, d, hits):
     """What seen_directly reads of the surfaces hit, (triangle, front side)
-    per hit, and the rows that hit: no shading frames (interaction.surface_hits)."""
-    if scene.face_normals is None:
+    per hit, and the rows that hit: no shading frames (interaction.surface_hits).
+    Graphs reading Light Path are evaluated at each hit: the whole hits then."""
+    if scene.face_normals is None or materials.shading(scene).camera_ids:
         return surface_hits(scene, None, d, hits)
     idx = np.flatnonzero(hits.hit)
     prim = hits.prim[idx]

@@ -36,6 +36,13 @@ def world_environment(graph, images=None, warn=None):
               for img in s.tiles.values()]
     resolution = min(max(widths), MAX_RESOLUTION) if widths else DEFAULT_RESOLUTION
     env = Environment(radiance, resolution=resolution, sun=_sun(graph))
+    if any(n.kind == "LIGHT_PATH" for n in graph.nodes):
+        # Is Camera Ray etc.: the background the camera sees differs from the light.
+        def camera_radiance(d):
+            d = np.asarray(d, np.float32)
+            return np.nan_to_num(shader.closure(WorldGeometry(d, camera_ray=True)).get("emission", len(d)),
+                                 nan=0.0, posinf=0.0, neginf=0.0).astype(np.float32)
+        env.camera_radiance = camera_radiance
     return None if env.is_black else env
 
 
