@@ -58,12 +58,13 @@ class CombinedArrays:
         return a
 
     def _per_object(self, instances):
-        """Object Info colour and random number, ray visibility, by object id."""
+        """Object Info colour, random number and index, ray visibility, by object id."""
         a = self.arrays
         its = list(instances.values())
         a["colors"] = np.array([it.color for it in its], np.float32).reshape(-1, 4)
         a["visibility"] = np.array([it.visibility for it in its], bool).reshape(-1, 5)
         a["random"] = np.array([object_random(k[:2]) for k in instances], np.float32)
+        a["pass_index"] = np.array([it.pass_index for it in its], np.float32)
 
     def free(self):
         self.arrays = None

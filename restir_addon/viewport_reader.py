@@ -160,7 +160,7 @@ class SceneReader:
             while key in instances:     # the same key twice: keep both, numbered
                 key = key + (len(instances),)
             instances[key] = _Instance(mesh, np.array(inst.matrix_world, np.float64), slot_ids,
-                                       tuple(obj.color), ray_visibility(obj))
+                                       tuple(obj.color), ray_visibility(obj), int(obj.pass_index))
             if catcher_warning(obj):
                 self.warnings(catcher_warning(obj))
             if _animated(inst.parent if inst.is_instance else obj):
@@ -177,10 +177,11 @@ class SceneReader:
         remeshed = {k for k in common if instances[k].mesh is not old[k].mesh}
         remeshed |= instances.keys() - old.keys()
         moved = {k for k in common - remeshed if not np.array_equal(instances[k].matrix, old[k].matrix)}
-        # Material slots, Object Info colour or ray visibility changed.
+        # Material slots, Object Info colour or index, or ray visibility changed.
         reslotted = {k for k in common - remeshed
                      if not np.array_equal(instances[k].slot_ids, old[k].slot_ids)
                      or instances[k].color != old[k].color
+                     or instances[k].pass_index != old[k].pass_index
                      or instances[k].visibility != old[k].visibility}
         layout = set(instances) != set(old) or list(instances) != list(old)
         self._instances = instances

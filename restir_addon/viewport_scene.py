@@ -93,7 +93,7 @@ class SceneApplier:
                       versions=(self._geometry_version, self._lighting_version))
         scene.object_names = [key[0] for key in scene.object_keys]
         scene.object_info = {"Color": a["colors"][:, :3], "Alpha": a["colors"][:, 3],
-                             "Random": a["random"]}
+                             "Random": a["random"], "Object Index": a["pass_index"]}
         if not a["visibility"].all():
             scene.ray_visibility = a["visibility"]
         scene.film_transparent = self._film_transparent

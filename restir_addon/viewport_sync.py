@@ -24,6 +24,7 @@ class _Instance:
     slot_ids: np.ndarray            # material id of each slot
     color: tuple = (1.0, 1.0, 1.0, 1.0)         # Object > Viewport Display colour (Object Info)
     visibility: tuple = (True, True, True)      # visible to camera, shadow and other rays
+    pass_index: int = 0             # Object > Relations > Pass Index (Object Info's Object Index)
 
 
 def _clean_mesh(mesh, warn=None, name=""):

@@ -239,3 +239,34 @@ def test_light_path_is_camera_ray_seen_by_the_camera(addon, mode):
     floor = img[12, 9]
     assert 0.3 < floor.mean() < 0.41
     assert abs(floor[0] - floor[2]) < 0.02
+
+
+def test_object_info_object_index_is_the_pass_index(addon):
+    """Object Info > Object Index is the object's Pass Index (Cycles), read
+    again when it changes between renders; it was 0 for every object."""
+    import bpy
+    from addon_util import add_mesh as add, camera, fresh as fresh_scene, rect, world
+    from blender_util import render_image
+    scene = fresh_scene(32, 24, 2, "PATH")
+    camera()
+    world((1.0, 1.0, 1.0))
+    mat = bpy.data.materials.new("by index")
+    t = mat.node_tree
+    t.nodes.remove(t.nodes["Principled BSDF"])
+    info, quarter = t.nodes.new("ShaderNodeObjectInfo"), t.nodes.new("ShaderNodeMath")
+    quarter.operation, quarter.inputs[1].default_value = "MULTIPLY", 0.25
+    glow = t.nodes.new("ShaderNodeEmission")
+    t.links.new(info.outputs["Object Index"], quarter.inputs[0])
+    t.links.new(quarter.outputs[0], glow.inputs["Strength"])
+    t.links.new(glow.outputs[0], t.nodes["Material Output"].inputs["Surface"])
+    left = add("Left", *rect(-2, 0, -2, 2), mat=mat)
+    right = add("Right", *rect(0, 2, -2, 2), mat=mat)
+    left.pass_index, right.pass_index = 1, 3
+    img = render_image(scene)[..., :3]
+    np.testing.assert_allclose(img[12, 4], 0.25, rtol=1e-3)
+    np.testing.assert_allclose(img[12, 27], 0.75, rtol=1e-3)
+    right.pass_index = 2
+    img = render_image(scene)[..., :3]
+    np.testing.assert_allclose(img[12, 27], 0.5, rtol=1e-3)
+    s = export(addon)
+    assert sorted(s.object_info["Object Index"]) == [1, 2]

@@ -183,7 +183,8 @@ class SurfaceGeometry:
         return normalize(np.einsum("nji,nj->ni", inv[:, :3, :3], v).astype(np.float32))
 
     def object_info(self, name):
-        """Object Info: "Location" (N, 3), "Color" (N, 3), "Random" (N,), "Alpha" (N,)."""
+        """Object Info: "Location" (N, 3), "Color" (N, 3), "Random", "Alpha" and
+        "Object Index" (the object's pass index) (N,)."""
         oid = self.object_id
         if name == "Location":
             m = getattr(self.scene, "object_matrices", None)
@@ -191,7 +192,7 @@ class SurfaceGeometry:
                 return np.zeros((self.n, 3), np.float32)
             return np.take(np.asarray(m, np.float32)[:, :3, 3], oid, axis=0)
         table = getattr(self.scene, "object_info", {}) or {}
-        default = {"Color": (1, 1, 1), "Random": 0.0, "Alpha": 1.0}[name]
+        default = {"Color": (1, 1, 1), "Random": 0.0, "Alpha": 1.0, "Object Index": 0.0}[name]
         values = table.get(name)
         if values is None or len(values) == 0:
             return np.broadcast_to(np.float32(default), (self.n, 3) if name == "Color" else (self.n,))

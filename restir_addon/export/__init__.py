@@ -115,7 +115,7 @@ def export_scene(depsgraph, width=None, height=None):
     verts, tris, normals, uvs, mids, oids, light_rows, corners = [], [], [], [], [], [], [], []
     offset = 0
     object_index = {}           # instance key -> object id
-    object_matrices, object_colors, visibility = [], [], []
+    object_matrices, object_colors, visibility, pass_index = [], [], [], []
     for inst in depsgraph.object_instances:
         obj = inst.object
         if obj.type == "LIGHT":
@@ -147,6 +147,7 @@ def export_scene(depsgraph, width=None, height=None):
             object_matrices.append(np.array(inst.matrix_world, np.float32))
             object_colors.append(tuple(obj.color))
             visibility.append(ray_visibility(obj))
+            pass_index.append(obj.pass_index)
             if catcher_warning(obj):
                 warn(catcher_warning(obj))
         oids.append(np.full(len(mesh.triangles), object_index[key], np.int32))
@@ -179,7 +180,8 @@ def export_scene(depsgraph, width=None, height=None):
     scene.images = materials.images.images
     scene.object_info = {"Color": np.asarray([c[:3] for c in object_colors] or np.zeros((0, 3)), np.float32),
                          "Alpha": np.asarray([c[3] for c in object_colors], np.float32),
-                         "Random": np.asarray([object_random(k) for k in object_index], np.float32)}
+                         "Random": np.asarray([object_random(k) for k in object_index], np.float32),
+                         "Object Index": np.asarray(pass_index, np.float32)}
     shading(scene)      # compiles the graphs now: their warnings join the export's
     if visibility and not all(all(v) for v in visibility):
         scene.ray_visibility = np.asarray(visibility, bool)
