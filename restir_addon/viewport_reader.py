@@ -11,7 +11,7 @@ import bpy
 import numpy as np
 
 from ..core.scene import Lights
-from .export import catcher_warning, film_transparent, instance_key, ray_visibility
+from .export import film_transparent, instance_key, ray_visibility, visibility_warnings
 from .export.camera import export_camera, render_size
 from .export.lights import is_supported, light_row, row_signature
 from .export.materials import MaterialTable
@@ -161,8 +161,8 @@ class SceneReader:
                 key = key + (len(instances),)
             instances[key] = _Instance(mesh, np.array(inst.matrix_world, np.float64), slot_ids,
                                        tuple(obj.color), ray_visibility(obj), int(obj.pass_index))
-            if catcher_warning(obj):
-                self.warnings(catcher_warning(obj))
+            for text in visibility_warnings(obj, depsgraph.view_layer):
+                self.warnings(text)
             if _animated(inst.parent if inst.is_instance else obj):
                 animated.add(key)
         for mkey in set(self._meshes) - used_meshes:

@@ -79,12 +79,23 @@ def ray_visibility(obj):
                  for kind in ("camera", "shadow", "diffuse", "glossy", "transmission"))
 
 
-def catcher_warning(obj):
-    """The warning for Object > Visibility > Shadow Catcher, not rendered here
-    (the object renders as an ordinary one), else None."""
+def visibility_warnings(obj, view_layer=None):
+    """Warnings for what Object > Visibility or the view layer's collections
+    ask of an object that is not rendered here (it renders as an ordinary
+    object): shadow catcher, holdout, indirect only."""
+    out = []
     if getattr(obj, "is_shadow_catcher", False):
-        return f"Object '{obj.name}': shadow catcher is not supported; it renders as an ordinary object"
-    return None
+        out.append(f"Object '{obj.name}': shadow catcher is not supported; it renders as an ordinary object")
+    original = obj.original if obj.original is not None else obj
+    for label, getter in (("holdout", "holdout_get"), ("indirect only", "indirect_only_get")):
+        try:        # the object's own flag or its collection's in the view layer (on the original)
+            flagged = getattr(original, getter)(view_layer=view_layer) if view_layer is not None else False
+        except (AttributeError, TypeError, RuntimeError):
+            flagged = False
+        if flagged:
+            out.append(f"Object '{obj.name}': {label} (object or collection) is not supported; "
+                       "it renders as an ordinary object")
+    return out
 
 
 def film_transparent(scene):
@@ -148,8 +159,8 @@ def export_scene(depsgraph, width=None, height=None):
             object_colors.append(tuple(obj.color))
             visibility.append(ray_visibility(obj))
             pass_index.append(obj.pass_index)
-            if catcher_warning(obj):
-                warn(catcher_warning(obj))
+            for text in visibility_warnings(obj, depsgraph.view_layer):
+                warn(text)
         oids.append(np.full(len(mesh.triangles), object_index[key], np.int32))
         offset += len(pos)
 
