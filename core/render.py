@@ -52,7 +52,8 @@ def render_frame(ctx, settings, frame=0, on_sample=None, should_stop=None):
     start = time.perf_counter()
     n = w * h
     # A second process on Linux (core/forked.py), kept for the next frame of
-    # an animation if the scene changed only its camera.
+    # an animation if the scene changed only its camera, or objects moved
+    # (core/scene_patch.py).
     keep = Continuation(lambda: _continuation_token(ctx), (ctx,), _resume_path, (scene.camera, settings, frame),
                         patch=lambda state, token: _patch(state[0], ctx, token))
     with ctx.workers.twin(n, keep) as lead:
