@@ -33,6 +33,12 @@ from .scene import LIGHT_AREA, LIGHT_POINT, LIGHT_SPOT, LIGHT_SUN
 
 __all__ = ["INF_DIST", "LightSample", "LightSet"]
 
+def _radius(scene):
+    """Half the diagonal of the scene's bounds (at least 1e-3)."""
+    lo, hi = scene.bounds()
+    return max(0.5 * float(np.linalg.norm(hi - lo)), 1e-3)
+
+
 # Which routine samples an emitter (LightSet._group).
 _SPHERE, _SUN, _AREA, _TRI, _ENV, _NONE = range(6)
 
@@ -63,6 +69,10 @@ class LightSet:
         # Emissive triangles.
         # Per triangle, from the materials' constant rows and shader graphs.
         candidates, emission = emissive_triangles(scene)
+        # Object ids whose triangles may emit (follow() keeps the set while
+        # only other objects move).
+        self.emitting_objects = np.unique(scene.object_ids[candidates]) if len(candidates) \
+            else np.zeros(0, np.int32)
         lum = luminance(emission) if len(emission) else np.zeros(0, np.float32)
         self.tri_index = candidates[lum > 0].astype(np.int32)
         tri = scene.triangles[self.tri_index]
@@ -98,8 +108,7 @@ class LightSet:
             self.shadowless = np.zeros(self.n_analytic + len(self.tri_index) + 1, bool)
             self.shadowless[:self.n_analytic] = free
 
-        lo, hi = scene.bounds()
-        self.scene_radius = max(0.5 * float(np.linalg.norm(hi - lo)), 1e-3)
+        self.scene_radius = _radius(scene)
         self.environment = scene_environment(scene)
 
         # Selection weights ~ emitted power, in the order: analytic lights,
@@ -122,7 +131,28 @@ class LightSet:
             groups.append([_ENV])
         self._weights = np.concatenate(weights).astype(np.float64)
         self._groups = np.concatenate(groups).astype(np.int8)
+        self._bounds = scene.bounds()
         self._set_distribution(self._weights, self._groups)
+
+    def follow(self, scene):
+        """This set, in place, for ``scene``: the next frame of its scene,
+        in which no object of ``emitting_objects`` changed and the lights,
+        materials, world and ray visibility are the same (a frame of an
+        animation where other objects moved). Only the scene's bounds, by
+        whose radius suns and the world are weighed, are taken anew.
+        Returns self."""
+        self.lights = scene.lights
+        bounds = scene.bounds()
+        if not all(np.array_equal(a, b) for a, b in zip(bounds, self._bounds)):
+            self._bounds = bounds
+            self.scene_radius = _radius(scene)
+            weights = self._weights.copy()
+            weights[:self.n_analytic] = self.analytic.selection_weights(self.scene_radius)
+            if self.world_index >= 0:
+                weights[self.world_index] = self.world_weight(self.environment, self.scene_radius)
+            self._weights = weights
+            self._set_distribution(weights, self._groups)
+        return self
 
     @staticmethod
     def world_weight(env, scene_radius):

@@ -192,13 +192,26 @@ class Scene:
     # Film > Transparent: the world seen directly is left out and the image
     # gets an alpha of the pixels' coverage by geometry.
     film_transparent: bool = False
+    # (lo, hi) of the vertices, from a builder that keeps them per object
+    # (the add-on); None: computed on first use and kept while ``vertices``
+    # is the same array, as a frame asks several times (ray offsets, the
+    # lights, the world's distance) and a pass over 1M vertices takes some
+    # 5 ms. Vertices edited in place belong in a new Scene.
+    known_bounds: tuple = None
 
     @property
     def triangle_count(self):
         return len(self.triangles)
 
     def bounds(self):
-        return column_bounds(self.vertices)
+        if self.known_bounds is None:
+            cached = self.__dict__.get("_bounds_of")
+            if cached is None or cached[0] is not self.vertices:
+                cached = self._bounds_of = (self.vertices, *column_bounds(self.vertices))
+            lo, hi = cached[1:]
+        else:
+            lo, hi = self.known_bounds
+        return lo.copy(), hi.copy()
 
     def extent(self):
         """Diagonal of the bounding box (at least 1e-3), used for ray offsets."""

@@ -3,7 +3,7 @@
 A render loop's twin (core/forked.py) is kept between the frames of an
 animation (``Workers.twin``). When objects move, the add-on updates the
 combined arrays in place and the DynamicAccel (core/dynamic_accel.py),
-builds a new Scene and, as lighting depends on geometry, a new LightSet. The
+builds a new Scene and a new LightSet where emitters moved. The
 twin holds copies of the last frame's: rather than forking a new twin, whose
 copy-on-write page faults are paid again every frame, the parent sends a
 ScenePatch: the new scene's arrays (any may have changed in place) and the
@@ -93,8 +93,7 @@ def apply(ctx, patch):
     if patch.new_lights:
         lights = LightSet(scene)
     else:
-        lights = ctx.lights
-        lights.lights = scene.lights
+        lights = ctx.lights.follow(scene)
     out = dataclasses.replace(ctx, scene=scene, accel=transparency.wrap(acc, scene), lights=lights,
                               eps=patch.eps)
     if fingerprint(out) != patch.fingerprint:

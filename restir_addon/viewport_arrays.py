@@ -5,6 +5,7 @@ a material slot change, a mesh edit of the same size)."""
 
 import numpy as np
 
+from ..core.scene import column_bounds
 from .export import corner_data, object_random, placed_corners
 from .viewport_sync import _placed
 
@@ -27,6 +28,8 @@ class CombinedArrays:
         self.arrays = None
         self._layout = {}       # key -> (v0, v1, t0, t1) rows in the combined arrays
         self._placed = {}       # key -> (positions, normals, face normals) in world space
+        self._bounds = np.zeros((0, 2, 3), np.float32)  # per object id: (lo, hi) of its vertices
+        self._has_vertices = np.zeros(0, bool)
 
     def update(self, instances, changed, reslotted, relayout):
         """Bring the arrays up to date with ``instances`` (key -> instance):
@@ -51,11 +54,22 @@ class CombinedArrays:
                 a["vertices"][v0:v1], a["normals"][t0:t1], a["face_normals"][t0:t1] = pos, nrm, fn
                 a["triangles"][t0:t1] = it.mesh.triangles + v0
                 a["uvs"][t0:t1] = it.mesh.uvs
-                a["matrices"][a["keys"].index(key)] = it.matrix
+                oid = a["keys"].index(key)
+                a["matrices"][oid] = it.matrix
+                if len(pos):
+                    self._bounds[oid] = column_bounds(pos)
             a["material_ids"][t0:t1] = _material_ids(it)
         if reslotted:
             self._per_object(instances)
         return a
+
+    def bounds(self):
+        """(lo, hi) of every vertex, from the objects' own (Scene.known_bounds):
+        a frame that moves one object does not pass over the others."""
+        b = self._bounds[self._has_vertices]
+        if len(b) == 0:
+            return np.zeros(3, np.float32), np.zeros(3, np.float32)
+        return b[:, 0].min(axis=0), b[:, 1].max(axis=0)
 
     def _per_object(self, instances):
         """Object Info colour, random number and index, ray visibility, by object id."""
@@ -70,6 +84,7 @@ class CombinedArrays:
         self.arrays = None
         self._layout = {}
         self._placed = {}
+        self._bounds, self._has_vertices = np.zeros((0, 2, 3), np.float32), np.zeros(0, bool)
 
     def _fits(self, key, inst):
         v0, v1, t0, t1 = self._layout[key]
@@ -109,3 +124,17 @@ class CombinedArrays:
             [it.mesh.triangles for it in instances.values()])
         self.arrays = a
         self._layout = layout
+        self._object_bounds(a["vertices"], [layout[k][:2] for k in keys])
+
+    def _object_bounds(self, vertices, spans):
+        """Per object id, the bounds of its rows of ``vertices`` (one
+        reduceat per column over the whole array)."""
+        spans = np.array(spans, np.int64).reshape(-1, 2)
+        self._has_vertices = spans[:, 1] > spans[:, 0]
+        self._bounds = np.zeros((len(spans), 2, 3), np.float32)
+        starts = spans[self._has_vertices, 0]
+        if len(starts):
+            for k in range(3):
+                column = np.ascontiguousarray(vertices[:, k])
+                self._bounds[self._has_vertices, 0, k] = np.minimum.reduceat(column, starts)
+                self._bounds[self._has_vertices, 1, k] = np.maximum.reduceat(column, starts)

@@ -19,9 +19,15 @@ class SceneApplier:
         if p.empty():
             return
         geometry = False
+        lights_changed = p.materials is not None or p.lights is not None or p.world is not None
         if p.instances is not None:
+            before = self._combined.arrays
             self._apply_objects(p)
             geometry = True
+            # The lights hold the emitting triangles: a frame that only moved
+            # or deformed other objects in place keeps them (LightSet.follow).
+            lights_changed = lights_changed or p.full or p.layout or bool(p.reslotted) \
+                or self._combined.arrays is not before or self._moved_emitters(p.moved | p.remeshed)
         if p.materials is not None:
             self._scene_materials, self._scene_shaders, self._scene_images = p.materials
         if p.lights is not None:
@@ -44,9 +50,18 @@ class SceneApplier:
         self._lighting_version += geometry or any(
             x is not None for x in (p.materials, p.lights, p.world))
         self._applied_generation = p.generation
-        self._build_context(geometry or p.materials is not None or p.lights is not None
-                            or p.world is not None)
+        self._build_context(lights_changed)
         self._scene_changed()
+
+    def _moved_emitters(self, keys):
+        """Whether any of these object keys has triangles the lights hold."""
+        if self._ctx is None or not keys:
+            return self._ctx is None
+        ids = self._ctx.lights.emitting_objects
+        if len(ids) == 0:
+            return False
+        index = {key: i for i, key in enumerate(self._combined.arrays["keys"])}
+        return bool(np.isin([index.get(k, -1) for k in keys], ids).any())
 
     def _apply_objects(self, p):
         inst = p.instances
@@ -90,7 +105,8 @@ class SceneApplier:
                       width=w, height=h, filter_width=self._filter_width,
                       object_keys=list(a["keys"]), object_matrices=a["matrices"].copy(),
                       face_normals=a["face_normals"],
-                      versions=(self._geometry_version, self._lighting_version))
+                      versions=(self._geometry_version, self._lighting_version),
+                      known_bounds=self._combined.bounds())
         scene.object_names = [key[0] for key in scene.object_keys]
         scene.object_info = {"Color": a["colors"][:, :3], "Alpha": a["colors"][:, 3],
                              "Random": a["random"], "Object Index": a["pass_index"]}
@@ -105,8 +121,8 @@ class SceneApplier:
             lights = LightSet(scene)
             eps = RAY_EPS_RELATIVE * scene.extent()
         else:
-            lights, eps = self._ctx.lights, self._ctx.eps
-            lights.lights = scene.lights
+            lights = self._ctx.lights.follow(scene)
+            eps = RAY_EPS_RELATIVE * scene.extent()
         self._scene = scene
         if self._workers is None:
             self._workers = Workers(self.threads, processes=self.twin_process)

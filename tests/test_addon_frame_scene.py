@@ -181,6 +181,51 @@ def test_camera_and_object_motion_read_no_mesh(addon, reports, tmp_path):
     assert reports.of("ERROR") == []
 
 
+def test_lights_are_kept_while_only_other_objects_move(addon, reports, tmp_path):
+    """The light set is built again only in frames where an emitter moved;
+    the scene's bounds, kept per object, are those of its vertices."""
+    import bpy
+    from core.scene import column_bounds
+    scene = fresh(24, 16, samples=1, mode="RESTIR_BIASED")
+    scene.restir_gi.warmup_frames = 1
+    world((0.1, 0.1, 0.1))
+    add_mesh("Floor", *rect(-2, 2, -2, 2))
+    camera(location=(0, 0, 5), type="ORTHO", ortho_scale=4.0)
+    glow = bpy.data.materials.new("Glow")
+    glow.use_nodes = True
+    glow.node_tree.nodes["Principled BSDF"].inputs["Emission Strength"].default_value = 5.0
+    glow.node_tree.nodes["Principled BSDF"].inputs["Emission Color"].default_value = (1, 1, 1, 1)
+    box, lamp = _box("Box", (0, 0, 0)), _box("Lamp", (1, 1, 0), size=0.2, mat=glow)
+    for f in FRAMES:
+        box.location = (0.6 * f, -0.5, 0.0)             # out of the floor's bounds at frame 4
+        box.keyframe_insert("location", frame=f)
+        lamp.location = (1.0, 1.0, 0.5 * (f >= 3))      # the emitter moves at frame 3 only
+        lamp.keyframe_insert("location", frame=f)
+    scene.frame_start, scene.frame_end = FRAMES[0], FRAMES[-1]
+    scene.render.image_settings.file_format = "OPEN_EXR"
+    scene.render.filepath = str(tmp_path / "lights_####")
+    addon.restir_addon.state.clear()
+    stream = addon.restir_addon.state.stream_for(scene.name, bpy.context.view_layer.name)
+    seen = {}
+
+    def post(sc, *_):
+        kept = stream.frame_scene.scene
+        bounds = np.array(kept.bounds()), np.array(column_bounds(kept.vertices))
+        seen[sc.frame_current] = (stream.frame_scene.context.lights, bounds)
+
+    bpy.app.handlers.render_post.append(post)
+    try:
+        bpy.ops.render.render(animation=True)
+    finally:
+        bpy.app.handlers.render_post.remove(post)
+    sets = [seen[f][0] for f in FRAMES]
+    assert sets[0] is sets[1] and sets[1] is not sets[2] and sets[2] is sets[3], sets
+    for f in FRAMES:
+        assert np.array_equal(*seen[f][1]), (f, seen[f][1])
+    assert seen[4][1][0][1, 0] > 2.0            # the box's move did grow the bounds
+    assert reports.of("ERROR") == []
+
+
 def test_kept_scene_is_freed_after_the_job(addon, tmp_path):
     """Without Persistent Data the kept scene is freed when the render ends;
     with it, the next render starts from it."""

@@ -411,3 +411,29 @@ def test11_no_lights_and_degenerate_points(rng):
     s = ls.sample(np.zeros((1000, 3), np.float32), rng.random(1000, dtype=np.float32),
                   rng.random((1000, 2), dtype=np.float32))
     assert np.isfinite(s.radiance).all() and np.isfinite(s.pdf).all() and np.isfinite(s.wi).all()
+
+
+def test12_follow_matches_a_new_set(rng):
+    """LightSet.follow (a frame where only non-emitting objects moved) gives
+    the set a new build gives: the sun's weight follows the scene's size."""
+    rows = [{"kind": LIGHT_SUN, "direction": unit([0, -1, -1]), "power": (2, 2, 2)},
+            {"kind": LIGHT_POINT, "position": (1, 0, 1), "power": (100, 100, 100)}]
+    v = np.float32([[-1, -1, 0], [1, -1, 0], [1, 1, 0], [0, 0, 1], [0.5, 0, 1], [0, 0.5, 1]])
+    mats = Materials.from_list([{"emission": (4, 4, 4)}, {"base_color": (0.5, 0.5, 0.5)}])
+    make = lambda verts: make_scene(verts, np.int32([[0, 1, 2], [3, 4, 5]]),  # noqa: E731
+                                    material_ids=np.int32([0, 1]), object_ids=np.int32([0, 1]),
+                                    materials=mats, lights=Lights.from_list(rows))
+    scene = make(v)
+    ls = LightSet(scene)
+    assert ls.emitting_objects.tolist() == [0]
+    moved = v.copy()
+    moved[3:] += np.float32([6, 0, 3])                  # the plain triangle, far out: the scene grows
+    followed = ls.follow(make(moved))
+    fresh = LightSet(make(moved))
+    assert followed is ls and followed.scene_radius == fresh.scene_radius > 2.0
+    assert np.allclose(followed.distribution.pmf, fresh.distribution.pmf, rtol=1e-6)
+    assert not np.allclose(LightSet(scene).distribution.pmf, fresh.distribution.pmf, rtol=1e-3)
+    p = rng.uniform(-1, 1, (500, 3)).astype(np.float32)
+    u1, u2 = rng.random(500, dtype=np.float32), rng.random((500, 2), dtype=np.float32)
+    a, b = followed.sample(p, u1, u2), fresh.sample(p, u1, u2)
+    assert np.array_equal(a.wi, b.wi) and np.allclose(a.pdf, b.pdf, rtol=1e-6)
