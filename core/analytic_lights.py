@@ -290,9 +290,10 @@ class AnalyticLights:
     def emitted_along(self, o, d, tmax, pmf, pdf_bsdf=None, hidden=None):
         """Radiance of the analytic lights crossed by rays o + t d, 0 < t < tmax,
         weighted against NEE by the power heuristic (pmf: each light's selection
-        probability). pdf_bsdf None means camera rays: weight one, and only
-        lights marked camera_visible. hidden: (L, N) or (L, 1) bool, the rays
-        each light is hidden from."""
+        probability, or a function of the light giving it per ray). pdf_bsdf
+        None means camera rays: weight one, and only lights marked
+        camera_visible. hidden: (L, N) or (L, 1) bool, the rays each light is
+        hidden from."""
         n = len(o)
         total = np.zeros((n, 3), np.float32)
         if len(self.lights) == 0 or n == 0:
@@ -304,7 +305,7 @@ class AnalyticLights:
                 continue
             if hidden is not None and hidden[li].all():
                 continue
-            pmf_li = pmf[li]
+            pmf_li = pmf(li) if callable(pmf) else pmf[li]
             if kind == LIGHT_AREA:
                 nrm = lt.direction[li]
                 den = matmul3(d, nrm)

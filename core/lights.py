@@ -26,6 +26,7 @@ import numpy as np
 from .analytic_lights import (INF_DIST, AnalyticLights, _by_code, _empty_sample, _per_row,
                               _rows_where, _same_index)
 from .environment import scene_environment
+from .light_grid import LightGrid
 from .materials import emissive_triangles
 from .rows import divide, gather, rows_finite, scale, scatter
 from .sampling import Distribution1D, dot, luminance, square_to_uniform_triangle
@@ -131,6 +132,7 @@ class LightSet:
             groups.append([_ENV])
         self._weights = np.concatenate(weights).astype(np.float64)
         self._groups = np.concatenate(groups).astype(np.int8)
+        self._boxes = self._emitter_boxes()
         self._bounds = scene.bounds()
         self._set_distribution(self._weights, self._groups)
 
@@ -154,6 +156,26 @@ class LightSet:
             self._set_distribution(weights, self._groups)
         return self
 
+    def _emitter_boxes(self):
+        """(E, 2, 3) bounds of each emitter (a point for suns and the world)."""
+        boxes = np.zeros((len(self._weights), 2, 3), np.float32)
+        lt = self.lights
+        if self.n_analytic:
+            pos = np.asarray(lt.position, np.float32)
+            half = np.asarray(lt.radius, np.float32)[:, None] * np.ones(3, np.float32)
+            area = lt.kind == LIGHT_AREA
+            if area.any():
+                span = 0.5 * (np.abs(lt.axis_u) * np.asarray(lt.size_u)[:, None]
+                              + np.abs(lt.axis_v) * np.asarray(lt.size_v)[:, None])
+                half = np.where(area[:, None], span, half)
+            boxes[:self.n_analytic] = np.stack([pos - half, pos + half], 1)
+        if len(self.tri_index):
+            corners = (self.tri_p0, self.tri_p0 + self.tri_e1, self.tri_p0 + self.tri_e2)
+            t = slice(self.n_analytic, self.n_analytic + len(self.tri_index))
+            boxes[t, 0] = np.minimum(np.minimum(*corners[:2]), corners[2])
+            boxes[t, 1] = np.maximum(np.maximum(*corners[:2]), corners[2])
+        return boxes
+
     @staticmethod
     def world_weight(env, scene_radius):
         """Selection weight of the world: mean radiance x pi (irradiance) x pi R^2."""
@@ -172,6 +194,28 @@ class LightSet:
         world = np.nonzero(groups == _ENV)[0]
         self.world_index = int(world[0]) if len(world) else -1
         self.world_pmf = float(self.distribution.pmf[self.world_index]) if len(world) and self.count else 0.0
+        self._set_grid(weights, groups)
+
+    def _set_grid(self, weights, groups):
+        """Emitters with a place (lamps, emissive triangles) are chosen by
+        where the shading point is (core/light_grid.py), together with the
+        probability power gives them all; suns and the world by power."""
+        self.grid = None
+        local = np.isin(groups, (_SPHERE, _AREA, _TRI)) & (weights > 0)
+        if local.sum() < 2 or self.count == 0:
+            return
+        self._local_ids = np.nonzero(local)[0]
+        self._local_slot = np.full(len(weights), -1, np.int64)
+        self._local_slot[self._local_ids] = np.arange(len(self._local_ids))
+        self._p_local = float(self.distribution.pmf[self._local_ids].sum())
+        self._far_ids = np.nonzero(~local)[0]
+        far = weights[self._far_ids]
+        self._far = Distribution1D(far) if len(far) and far.sum() > 0 else None
+        if self._far is None:
+            self._p_local = 1.0
+        box = self._boxes[self._local_ids]
+        grid = LightGrid(*self._bounds, weights[self._local_ids], box[:, 0], box[:, 1])
+        self.grid = grid if grid.useful else None
 
     @property
     def lights(self):
@@ -187,13 +231,43 @@ class LightSet:
     #
     # Rows are grouped by the routine that samples them (core/analytic_lights.py).
 
-    def _select(self, u_select):
-        """Index of the emitter each row samples (Distribution1D.sample_discrete
-        without the re-stretched u, which sampling does not use)."""
+    def _select(self, u_select, p):
+        """(index of the emitter each row at points p samples, its selection
+        probability) (Distribution1D.sample_discrete without the re-stretched
+        u, which sampling does not use)."""
         if self.distribution.count == 1:
-            return np.zeros(len(u_select), np.intp)
-        idx = self.distribution.locate(u_select) - 1
-        return np.clip(idx, 0, self.distribution.count - 1)
+            return np.zeros(len(u_select), np.intp), np.ones(len(u_select))
+        if self.grid is None:
+            idx = np.clip(self.distribution.locate(u_select) - 1, 0, self.distribution.count - 1)
+            return idx, np.take(self.distribution.pmf, idx)
+        idx = np.empty(len(u_select), np.intp)
+        pmf = np.empty(len(u_select))
+        near = u_select < self._p_local
+        rows = np.nonzero(near)[0]
+        if len(rows):
+            light, q = self.grid.sample(gather(p, rows), u_select[rows] / np.float64(self._p_local))
+            idx[rows] = self._local_ids[light]
+            pmf[rows] = self._p_local * q
+        rows = np.nonzero(~near)[0]
+        if len(rows):
+            u = (u_select[rows] - np.float64(self._p_local)) / (1.0 - self._p_local)
+            far = np.clip(self._far.locate(u) - 1, 0, self._far.count - 1)
+            idx[rows] = self._far_ids[far]
+            pmf[rows] = np.take(self.distribution.pmf, idx[rows])
+        return idx, pmf
+
+    def selection_pmf(self, idx, p=None, cells=None):
+        """Probability (N,) of NEE choosing emitters idx (N,) at points p
+        (N, 3) (or their grid cells)."""
+        pmf = np.take(self.distribution.pmf, idx)
+        if self.grid is None:
+            return pmf
+        slot = np.take(self._local_slot, idx)
+        rows = np.nonzero(slot >= 0)[0]
+        if len(rows):
+            cells = self.grid.cells(gather(p, rows)) if cells is None else np.take(cells, rows)
+            pmf[rows] = self._p_local * self.grid.pmf(np.take(slot, rows), cells=cells)
+        return pmf
 
     def sample(self, p, u_select, u, n=None):
         """One light sample for each shading point p (N, 3); n: the points'
@@ -202,7 +276,7 @@ class LightSet:
         count = len(p)
         if self.count == 0 or count == 0:
             return LightSample(*_empty_sample(count))
-        idx = self._select(u_select)
+        idx, pmf = self._select(u_select, p)
         a = self.analytic
         routines = {_SPHERE: a.sample_sphere, _SUN: a.sample_sun, _AREA: a.sample_area,
                     _TRI: self._sample_triangle, _ENV: self._sample_world}
@@ -218,7 +292,7 @@ class LightSet:
             if self.world_index >= 0:
                 world = codes == _ENV
         if self.distribution.count > 1:
-            pdf = pdf * np.take(self.distribution.pmf, idx)
+            pdf = pdf * pmf
         ok = (pdf > 0) & np.isfinite(pdf) & rows_finite(rad)
         if not ok.all():
             bad = np.nonzero(~ok)[0]
@@ -270,7 +344,7 @@ class LightSet:
         slot = np.take(self.tri_slot, prim)
         ok = slot >= 0
         s = np.maximum(slot, 0)
-        pmf = np.take(self.distribution.pmf, self.n_analytic + s)
+        pmf = self.selection_pmf(self.n_analytic + s, p_ref)
         to_q = p_hit - p_ref
         d2 = dot(to_q, to_q)
         cos_l = np.abs(dot(wi, gather(self.tri_normal, s)))
@@ -307,4 +381,14 @@ class LightSet:
             lamps = self.hidden_kinds[:self.n_analytic]
             if lamps.any():
                 hidden = lamps[:, 0:1] if kinds is None else lamps[:, kinds]     # (L, N)
-        return self.analytic.emitted_along(o, d, tmax, self.distribution.pmf, pdf_bsdf, hidden)
+        pmf = self.distribution.pmf
+        if self.grid is not None and (self._local_slot[:self.n_analytic] >= 0).any():
+            cells = self.grid.cells(o)
+            table = pmf
+
+            def pmf(li):            # (N,) for lamps the grid chooses, a number for the others
+                slot = self._local_slot[li]
+                if slot < 0:
+                    return table[li]
+                return self._p_local * self.grid.pmf(np.full(len(cells), slot), cells=cells)
+        return self.analytic.emitted_along(o, d, tmax, pmf, pdf_bsdf, hidden)

@@ -361,7 +361,7 @@ def test09_mis_of_nee_and_bsdf_sampling(name, rng):
 
 # --- light selection ------------------------------------------------------------------------
 
-def test10_selection_is_proportional_to_power(rng):
+def test10_selection_by_power_and_place(rng):
     rows = [
         {"kind": LIGHT_POINT, "position": (1, 0, 1), "power": (100, 100, 100)},
         {"kind": LIGHT_POINT, "position": (-1, 0, 1), "power": (300, 0, 0)},
@@ -390,11 +390,15 @@ def test10_selection_is_proportional_to_power(rng):
     which[(which < 0)] = 4          # area light and triangle: the rest, told apart by distance below
     which[(which == 4) & (s.wi[:, 2] < 0)] = 5
     counts = np.bincount(which, minlength=6)
-    p_value, *_ = pooled_chi2(counts, ls.distribution.pmf.astype(np.float64) * count)
-    assert p_value > 0.001, (counts, ls.distribution.pmf * count)
+    # The lamps and the triangle are chosen by where p is (core/light_grid.py),
+    # with the probability selection_pmf gives, which sums to one.
+    pmf = ls.selection_pmf(np.arange(6), np.repeat(p[None], 6, axis=0))
+    assert np.isclose(pmf.sum(), 1.0) and pmf[3] == ls.distribution.pmf[3]
+    p_value, *_ = pooled_chi2(counts, pmf * count)
+    assert p_value > 0.001, (counts, pmf * count)
     # Delta lights report their selection probability as their pdf.
     for i in range(4):
-        assert np.allclose(s.pdf[which == i], ls.distribution.pmf[i], rtol=1e-6)
+        assert np.allclose(s.pdf[which == i], pmf[i], rtol=1e-6)
 
 
 def test11_no_lights_and_degenerate_points(rng):

@@ -1,5 +1,6 @@
 """Spot (also with colour temperature and a light node tree), sun (also with
-Cast Shadow off), emissive Principled mesh and world lighting against Cycles.
+Cast Shadow off), emissive Principled mesh, world lighting, and many lamps
+and glowing cubes at once against Cycles.
 
 A floor with two boxes (Diffuse BSDF) is built in code and lit by one source at
 a time; both engines render it twice with independent seeds. As in
@@ -94,6 +95,20 @@ def _scene(source):
         _mesh("Emitter", [[-1, -3.5, 4.5], [1, -3.5, 4.5], [1, -2.5, 4.5], [-1, -2.5, 4.5]],
               [[0, 1, 2, 3]], mat)
 
+    elif source == "many_lamps":
+        # Lamps and small glowing cubes spread over the floor: emitters are
+        # chosen by where the shading point is (core/light_grid.py).
+        rng = np.random.default_rng(5)
+        for i, (x, y) in enumerate(rng.uniform(-2.7, 2.7, (10, 2))):
+            _light(f"Lamp{i}", "POINT", (x, y, rng.uniform(0.3, 2.0)), energy=float(rng.uniform(20, 120)),
+                   shadow_soft_size=float(rng.uniform(0.0, 0.2)), color=tuple(rng.uniform(0.4, 1.0, 3)))
+        glow = bpy.data.materials.new("Glow")
+        emission = glow.node_tree.nodes["Principled BSDF"]
+        emission.inputs["Emission Color"].default_value = (0.6, 0.8, 1.0, 1)
+        emission.inputs["Emission Strength"].default_value = 30.0
+        for i, (x, y) in enumerate(rng.uniform(-2.7, 2.7, (6, 2))):
+            _mesh(f"Cube{i}", *_box((x, y, 0.0), (x + 0.15, y + 0.15, 0.15)), glow)
+
     cam_data = bpy.data.cameras.new("Camera")
     cam_data.lens = 30.0
     cam = bpy.data.objects.new("Camera", cam_data)
@@ -105,7 +120,8 @@ def _scene(source):
     return scene
 
 
-@pytest.mark.parametrize("source", ["spot", "warm_spot", "sun", "shadowless_sun", "emitter", "world"])
+@pytest.mark.parametrize("source", ["spot", "warm_spot", "sun", "shadowless_sun", "emitter", "world",
+                                    "many_lamps"])
 def test_lights_match_cycles(addon, source):
     r = compare_with_cycles(_scene(source), SAMPLES, BOUNCES, BLOCK)
     assert np.isfinite(r["ours"]).all()
