@@ -7,6 +7,7 @@ import numpy as np
 
 from ..core.scene import column_bounds
 from .export import corner_data, object_random, placed_corners
+from .export.object_attributes import attribute_tables
 from .viewport_sync import _placed
 
 NAMES = ("vertices", "triangles", "normals", "uvs", "material_ids", "object_ids", "face_normals")
@@ -79,6 +80,7 @@ class CombinedArrays:
         a["visibility"] = np.array([it.visibility for it in its], bool).reshape(-1, 5)
         a["random"] = np.array([object_random(k[:2]) for k in instances], np.float32)
         a["pass_index"] = np.array([it.pass_index for it in its], np.float32)
+        a["attributes"] = attribute_tables([it.attributes for it in its])
 
     def free(self):
         self.arrays = None

@@ -16,6 +16,7 @@ from .export.camera import export_camera, render_size
 from .export.lights import is_supported, light_row, row_signature
 from .export.materials import MaterialTable
 from .export.mesh import GEOMETRY_TYPES, unrendered
+from .export.object_attributes import object_attributes, split_needs
 from .export.world import export_world
 from .memory import check_geometry
 from .viewport_state import as_update
@@ -143,7 +144,7 @@ class SceneReader:
             used_meshes.add(mkey)
             slot_ids = np.array([self._materials.id_of(s.material) for s in obj.material_slots] or [0],
                                 np.int32)
-            needs = self._materials.needs(slot_ids)
+            needs, attribute_needs = split_needs(self._materials.needs(slot_ids))
             cached = self._meshes.get(mkey)
             missing = cached is not None and not needs <= set(cached.corners)
             if mkey not in fresh and (flagged or mkey not in self._meshes or missing):
@@ -160,7 +161,8 @@ class SceneReader:
             while key in instances:     # the same key twice: keep both, numbered
                 key = key + (len(instances),)
             instances[key] = _Instance(mesh, np.array(inst.matrix_world, np.float64), slot_ids,
-                                       tuple(obj.color), ray_visibility(obj), int(obj.pass_index))
+                                       tuple(obj.color), ray_visibility(obj), int(obj.pass_index),
+                                       object_attributes(inst, obj, attribute_needs))
             for text in visibility_warnings(obj, depsgraph.view_layer):
                 self.warnings(text)
             if _animated(inst.parent if inst.is_instance else obj):
@@ -182,6 +184,7 @@ class SceneReader:
                      if not np.array_equal(instances[k].slot_ids, old[k].slot_ids)
                      or instances[k].color != old[k].color
                      or instances[k].pass_index != old[k].pass_index
+                     or instances[k].attributes != old[k].attributes
                      or instances[k].visibility != old[k].visibility}
         layout = set(instances) != set(old) or list(instances) != list(old)
         self._instances = instances

@@ -109,7 +109,7 @@ class SceneApplier:
                       known_bounds=self._combined.bounds())
         scene.object_names = [key[0] for key in scene.object_keys]
         scene.object_info = {"Color": a["colors"][:, :3], "Alpha": a["colors"][:, 3],
-                             "Random": a["random"], "Object Index": a["pass_index"]}
+                             "Random": a["random"], "Object Index": a["pass_index"], **a["attributes"]}
         if not a["visibility"].all():
             scene.ray_visibility = a["visibility"]
         scene.film_transparent = self._film_transparent

@@ -25,6 +25,7 @@ class _Instance:
     color: tuple = (1.0, 1.0, 1.0, 1.0)         # Object > Viewport Display colour (Object Info)
     visibility: tuple = (True, True, True)      # visible to camera, shadow and other rays
     pass_index: int = 0             # Object > Relations > Pass Index (Object Info's Object Index)
+    attributes: tuple = ()          # ((need, rgba), ...): Attribute nodes of type Object or Instancer
 
 
 def _clean_mesh(mesh, warn=None, name=""):

@@ -182,6 +182,16 @@ class SurfaceGeometry:
         v = np.broadcast_to(np.asarray(v, np.float32), (self.n, 3))
         return normalize(np.einsum("nji,nj->ni", inv[:, :3, :3], v).astype(np.float32))
 
+    def object_attribute(self, name):
+        """(N, 4) value of an Attribute node of type Object or Instancer
+        (``name``: "object:NAME" or "instancer:NAME"), per object as the
+        add-on read it (restir_addon/export/object_attributes.py); zero where
+        none was read."""
+        values = (getattr(self.scene, "object_info", {}) or {}).get(name)
+        if values is None or len(values) == 0:
+            return np.zeros((self.n, 4), np.float32)
+        return np.take(np.asarray(values, np.float32), self.object_id, axis=0)
+
     def object_info(self, name):
         """Object Info: "Location" (N, 3), "Color" (N, 3), "Random", "Alpha" and
         "Object Index" (the object's pass index) (N,)."""
@@ -246,6 +256,9 @@ class WorldGeometry:
 
     def object_info(self, name):
         return np.zeros((self.n, 3) if name in ("Location", "Color") else (self.n,), np.float32)
+
+    def object_attribute(self, name):
+        return np.zeros((self.n, 4), np.float32)
 
     def offset(self, dp):
         return WorldGeometry(self.d + dp, self.camera_ray)

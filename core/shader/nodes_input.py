@@ -107,7 +107,15 @@ def color_attribute(inp, geom, n, sh):
 @varying
 @node("ATTRIBUTE")
 def attribute(inp, geom, n, sh):
-    c, a = geom.attribute(n.props.get("attribute_name", ""))
+    kind = n.props.get("attribute_type", "GEOMETRY")
+    name = n.props.get("attribute_name", "")
+    if kind in ("OBJECT", "INSTANCER"):
+        v = geom.object_attribute(f"{kind.lower()}:{name}")
+        c, a = np.ascontiguousarray(v[:, :3]), np.ascontiguousarray(v[:, 3])
+    elif kind == "GEOMETRY":
+        c, a = geom.attribute(name)
+    else:           # View Layer: warned about at compile time
+        c, a = np.zeros((geom.n, 3), np.float32), np.zeros(geom.n, np.float32)
     return {"Color": c, "Vector": c, "Fac": c.mean(axis=-1).astype(np.float32), "Alpha": a}
 
 

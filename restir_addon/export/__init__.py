@@ -10,6 +10,7 @@ from .camera import export_camera, render_size
 from .lights import is_supported, light_row
 from .materials import MaterialTable
 from .mesh import GEOMETRY_TYPES, hair_warning, place, read_corner_data, read_mesh, unrendered
+from .object_attributes import attribute_tables, object_attributes, split_needs
 from .world import export_world
 
 
@@ -126,7 +127,7 @@ def export_scene(depsgraph, width=None, height=None):
     verts, tris, normals, uvs, mids, oids, light_rows, corners = [], [], [], [], [], [], [], []
     offset = 0
     object_index = {}           # instance key -> object id
-    object_matrices, object_colors, visibility, pass_index = [], [], [], []
+    object_matrices, object_colors, visibility, pass_index, attributes = [], [], [], [], []
     for inst in depsgraph.object_instances:
         obj = inst.object
         if obj.type == "LIGHT":
@@ -140,7 +141,8 @@ def export_scene(depsgraph, width=None, height=None):
                 warn(unrendered(obj))
             continue
         slot_ids = np.array([materials.id_of(s.material) for s in obj.material_slots] or [0], np.int32)
-        entry = _object_mesh(obj, cache, materials.needs(slot_ids), warn)
+        needs, attribute_needs = split_needs(materials.needs(slot_ids))
+        entry = _object_mesh(obj, cache, needs, warn)
         if entry is None or len(entry[0].triangles) == 0:
             continue
         mesh, corner = entry
@@ -159,6 +161,7 @@ def export_scene(depsgraph, width=None, height=None):
             object_colors.append(tuple(obj.color))
             visibility.append(ray_visibility(obj))
             pass_index.append(obj.pass_index)
+            attributes.append(object_attributes(inst, obj, attribute_needs))
             for text in visibility_warnings(obj, depsgraph.view_layer):
                 warn(text)
         oids.append(np.full(len(mesh.triangles), object_index[key], np.int32))
@@ -192,7 +195,7 @@ def export_scene(depsgraph, width=None, height=None):
     scene.object_info = {"Color": np.asarray([c[:3] for c in object_colors] or np.zeros((0, 3)), np.float32),
                          "Alpha": np.asarray([c[3] for c in object_colors], np.float32),
                          "Random": np.asarray([object_random(k) for k in object_index], np.float32),
-                         "Object Index": np.asarray(pass_index, np.float32)}
+                         "Object Index": np.asarray(pass_index, np.float32), **attribute_tables(attributes)}
     shading(scene)      # compiles the graphs now: their warnings join the export's
     if visibility and not all(all(v) for v in visibility):
         scene.ray_visibility = np.asarray(visibility, bool)

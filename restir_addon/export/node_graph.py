@@ -340,6 +340,11 @@ class _Translator:
             needs.add(f"color:{node.layer_name}")
         elif kind == "ATTRIBUTE" and node.attribute_type == "GEOMETRY":
             needs.add(f"color:{node.attribute_name}")
+        elif kind == "ATTRIBUTE" and node.attribute_type in ("OBJECT", "INSTANCER"):
+            needs.add(f"{node.attribute_type.lower()}:{node.attribute_name}")      # object_attributes.py
+        elif kind == "ATTRIBUTE":
+            self.warn(f"Attribute node '{node.name}' of type {node.attribute_type.replace('_', ' ').title()} "
+                      "is not supported; it reads zero")
         elif kind == "TEX_IMAGE" and "Vector" not in inputs:
             needs.add("uv:")
         elif kind in _PROCEDURAL and "Vector" not in inputs:
