@@ -270,3 +270,32 @@ def test_object_info_object_index_is_the_pass_index(addon):
     np.testing.assert_allclose(img[12, 27], 0.5, rtol=1e-3)
     s = export(addon)
     assert sorted(s.object_info["Object Index"]) == [1, 2]
+
+
+def test_object_info_material_index_is_the_material_pass_index(addon):
+    """Object Info > Material Index is the material's Pass Index (Cycles);
+    it was 0 for every material."""
+    import bpy
+    from addon_util import add_mesh as add, camera, fresh as fresh_scene, rect, world
+    from blender_util import render_image
+    scene = fresh_scene(32, 24, 2, "PATH")
+    camera()
+    world((0.0, 0.0, 0.0))
+    group = bpy.data.node_groups.new("glow by material index", "ShaderNodeTree")
+    group.interface.new_socket("Shader", in_out="OUTPUT", socket_type="NodeSocketShader")
+    info, glow = group.nodes.new("ShaderNodeObjectInfo"), group.nodes.new("ShaderNodeEmission")
+    out = group.nodes.new("NodeGroupOutput")
+    group.links.new(info.outputs["Material Index"], glow.inputs["Strength"])
+    group.links.new(glow.outputs[0], out.inputs[0])
+    for name, x0, index in (("A", -2, 1), ("B", 0, 3)):     # one node group, two materials
+        mat = bpy.data.materials.new(name)
+        t = mat.node_tree
+        t.nodes.remove(t.nodes["Principled BSDF"])
+        node = t.nodes.new("ShaderNodeGroup")
+        node.node_tree = group
+        t.links.new(node.outputs[0], t.nodes["Material Output"].inputs["Surface"])
+        mat.pass_index = index
+        add(name, *rect(x0, x0 + 2, -2, 2), mat=mat)
+    img = render_image(scene)[..., :3]
+    np.testing.assert_allclose(img[12, 4], 1.0, rtol=1e-3)
+    np.testing.assert_allclose(img[12, 27], 3.0, rtol=1e-3)

@@ -82,7 +82,8 @@ def geometry(inp, geom, n, sh):
 def object_info(inp, geom, n, sh):
     return {"Location": geom.object_info("Location"), "Color": geom.object_info("Color"),
             "Alpha": geom.object_info("Alpha"), "Random": geom.object_info("Random"),
-            "Object Index": geom.object_info("Object Index"), "Material Index": np.zeros(geom.n, np.float32)}
+            "Object Index": geom.object_info("Object Index"),
+            "Material Index": np.full(geom.n, n.props.get("material_index", 0.0), np.float32)}
 
 
 @varying

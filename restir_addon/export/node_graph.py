@@ -59,7 +59,11 @@ def material_graph(material, images=None):
     its viewport colour. None gives an empty graph (no output)."""
     fallback = None if material is None else Node(
         "BSDF_DIFFUSE", {"Color": plain(material.diffuse_color, COLOR), "Roughness": 0.0}, name="Diffuse")
-    return _graph_of(material, ("OUTPUT_MATERIAL",), fallback, "BSDF", images)
+    graph = _graph_of(material, ("OUTPUT_MATERIAL",), fallback, "BSDF", images)
+    for node in graph.nodes:        # Object Info > Material Index: the material's pass index
+        if node.kind == "OBJECT_INFO":
+            node.props["material_index"] = float(material.pass_index)
+    return graph
 
 
 def world_graph(world, images=None):
