@@ -77,10 +77,8 @@ class LightGrid:
 
         # Per cell: importance of each cluster (power over squared distance
         # from the cell's box to the cluster's) mixed with power alone.
-        c_lo = np.full((k, 3), np.inf)
-        c_hi = np.full((k, 3), -np.inf)
-        np.minimum.at(c_lo, self.cluster_of, box_lo)
-        np.maximum.at(c_hi, self.cluster_of, box_hi)
+        c_lo = np.minimum.reduceat(box_lo[order], start, axis=0)      # clusters are runs of order
+        c_hi = np.maximum.reduceat(box_hi[order], start, axis=0)
         ijk = np.stack(np.meshgrid(*[np.arange(n) for n in dims], indexing="ij"), -1).reshape(-1, 3)
         cell_size = size / dims
         cell_lo = lo + ijk * cell_size
@@ -181,8 +179,9 @@ class LightGrid:
             * np.take(self.within, light)
 
 
-def _morton(points, lo, size, bits=10):
-    """Morton codes of points within the box lo + [0, size]."""
+def _morton(points, lo, size, bits=6):
+    """Morton codes of points within the box lo + [0, size] (6 bits an axis:
+    enough to order them into at most MAX_CLUSTERS runs)."""
     q = np.clip(((points - lo) / size * (1 << bits)).astype(np.int64), 0, (1 << bits) - 1)
     code = np.zeros(len(points), np.int64)
     for b in range(bits):
