@@ -26,7 +26,7 @@ from .sampling import Distribution1D
 
 MAX_CLUSTERS = 64
 CELLS_LONG_AXIS = 16
-MAX_CELLS = 4096
+MAX_CELLS = CELLS_LONG_AXIS ** 3
 DEFENSIVE = 0.2
 USEFUL = 0.05
 
@@ -37,15 +37,17 @@ class LightGrid:
 
     def __init__(self, lo, hi, power, box_lo, box_hi):
         power = np.asarray(power, np.float64)
-        box_lo, box_hi = np.asarray(box_lo, np.float64), np.asarray(box_hi, np.float64)
+        box_lo, box_hi = np.array(box_lo, np.float64), np.array(box_hi, np.float64)
         self.count = len(power)
         lo, hi = np.asarray(lo, np.float64), np.asarray(hi, np.float64)
+        if not (np.isfinite(lo).all() and np.isfinite(hi).all()):
+            lo = hi = np.zeros(3)               # one cell: power alone
+        # An emitter of no finite place could be anywhere: the whole scene.
+        lost = ~(np.isfinite(box_lo).all(axis=1) & np.isfinite(box_hi).all(axis=1))
+        box_lo[lost], box_hi[lost] = lo, hi
         size = np.maximum(hi - lo, 1e-6 * max(float((hi - lo).max()), 1e-3))
-        cell = size.max() / CELLS_LONG_AXIS
-        dims = np.maximum(np.ceil(size / cell - 1e-9), 1).astype(np.int64)
-        while dims.prod() > MAX_CELLS:
-            cell *= 1.25
-            dims = np.maximum(np.ceil(size / cell - 1e-9), 1).astype(np.int64)
+        cell = size.max() / CELLS_LONG_AXIS    # at most 16 cells an axis: MAX_CELLS in all
+        dims = np.clip(np.ceil(size / cell - 1e-9), 1, CELLS_LONG_AXIS).astype(np.int64)
         self.lo = lo
         self.dims = dims
         self.inv_cell = (dims / size).astype(np.float64)

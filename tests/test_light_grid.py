@@ -50,7 +50,8 @@ def test_near_emitters_get_more_and_none_less_than_its_share():
 def test_degenerate_layouts_stay_distributions(rng):
     for lo, hi, centre in [((0, 0, 0), (0, 0, 0), np.zeros((5, 3))),             # a point scene
                            ((-1, -1, 0), (1, 1, 0), rng.uniform(-1, 1, (9, 3))),  # flat
-                           ((0, 0, 0), (1, 1, 1), np.full((4, 3), 50.0))]:        # lamps far outside
+                           ((0, 0, 0), (1, 1, 1), np.full((4, 3), 50.0)),         # lamps far outside
+                           ((0, 0, 0), (np.inf, 1, 1), np.float64([[0, 0, 0], [np.nan, 0, 0]]))]:
         grid = LightGrid(lo, hi, np.ones(len(centre)), centre, centre)
         p = rng.uniform(-2, 2, (len(centre), 3))
         for row in p:
