@@ -35,7 +35,10 @@ class LightGrid:
     """Per-cell selection among L emitters of powers ``power`` (L,) whose
     bounds are (box_lo, box_hi) (L, 3), for points within (lo, hi)."""
 
-    def __init__(self, lo, hi, power, box_lo, box_hi):
+    def __init__(self, lo, hi, power, box_lo, box_hi, axis=None, spread=None):
+        """axis (L, 3), spread (L,): the direction each emitter shines
+        along and the half-angle it reaches from it (a spot's half cone, pi/2
+        for an area light, pi or None: every way)."""
         power = np.asarray(power, np.float64)
         box_lo, box_hi = np.array(box_lo, np.float64), np.array(box_hi, np.float64)
         self.count = len(power)
@@ -88,6 +91,9 @@ class LightGrid:
         gap = np.maximum(0.0, np.maximum(c_lo[None] - cell_hi[:, None], cell_lo[:, None] - c_hi[None]))
         d2 = (gap * gap).sum(axis=2) + 0.25 * float((cell_size ** 2).sum())
         importance = cluster_power[None] / d2
+        if spread is not None and (np.asarray(spread) < np.pi).any():
+            importance *= _facing(np.asarray(axis, np.float64)[order], np.asarray(spread, np.float64)[order],
+                                  start, c_lo, c_hi, cell_lo, cell_hi)
         total = cluster_power.sum()
         by_power = cluster_power / total if total > 0 else np.full(k, 1.0 / k)
         norm = importance.sum(axis=1, keepdims=True)
@@ -179,6 +185,37 @@ class LightGrid:
             cells = self.cells(p)
         return np.take(self._flat_pmf, cells * self.k + np.take(self.cluster_of, light)) \
             * np.take(self.within, light)
+
+
+def _facing(axis, spread, start, c_lo, c_hi, cell_lo, cell_hi):
+    """(C, K) bound of how much each cluster shines toward each cell: 0
+    where no member's cone reaches any point of the cell, the cosine of the
+    smallest angle it could make for clusters of area lights (Lambertian),
+    1 otherwise (Conty Estevez and Kulla's orientation bound, with the
+    cluster's cone: the mean axis and the widest angle off it, plus the
+    angle the two boxes subtend). Members in cluster order; runs at start."""
+    omni = spread >= np.pi
+    unit = axis / np.maximum(np.linalg.norm(axis, axis=1, keepdims=True), 1e-30)
+    mean = np.add.reduceat(np.where(omni[:, None], 0.0, unit), start, axis=0)
+    length = np.linalg.norm(mean, axis=1, keepdims=True)
+    mean = mean / np.maximum(length, 1e-30)
+    cluster = np.repeat(np.arange(len(start)), np.diff(np.r_[start, len(axis)]))
+    off = np.arccos(np.clip((unit * mean[cluster]).sum(axis=1), -1.0, 1.0))
+    off = np.where(omni, np.pi, off)
+    theta_o = np.maximum.reduceat(off, start)
+    theta_o = np.where(length[:, 0] < 1e-6, np.pi, theta_o)
+    theta_e = np.maximum.reduceat(spread, start)
+    lambertian = np.minimum.reduceat(np.isclose(spread, 0.5 * np.pi), start).astype(bool)
+    c_mid, cell_mid = 0.5 * (c_lo + c_hi), 0.5 * (cell_lo + cell_hi)
+    reach = 0.5 * (np.linalg.norm(c_hi - c_lo, axis=1)[None] + np.linalg.norm(cell_hi - cell_lo, axis=1)[:, None])
+    v = cell_mid[:, None] - c_mid[None]                             # (C, K, 3)
+    dist = np.linalg.norm(v, axis=2)
+    cos_t = (v * mean[None]).sum(axis=2) / np.maximum(dist, 1e-30)
+    theta = np.arccos(np.clip(cos_t, -1.0, 1.0))
+    theta_u = np.where(dist > reach, np.arcsin(np.clip(reach / np.maximum(dist, 1e-30), 0.0, 1.0)), np.pi)
+    rest = np.maximum(theta - theta_o[None] - theta_u, 0.0)
+    out = np.where(rest < theta_e[None], 1.0, 0.0)
+    return np.where(lambertian[None], out * np.cos(np.minimum(rest, 0.5 * np.pi)), out)
 
 
 def _morton(points, lo, size, bits=6):

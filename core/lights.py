@@ -156,6 +156,24 @@ class LightSet:
             self._set_distribution(weights, self._groups)
         return self
 
+    def _emitter_cones(self):
+        """(E, 3) directions the emitters shine along and (E,) the
+        half-angles they reach from them: a spot's half cone, pi/2 for area
+        lights and one-sided emissive triangles, pi for the others."""
+        count = len(self._weights)
+        axis, spread = np.zeros((count, 3)), np.full(count, np.pi)
+        lt = self.lights
+        if self.n_analytic:
+            kind = np.asarray(lt.kind)
+            axis[:self.n_analytic] = lt.direction
+            spread[:self.n_analytic] = np.select(
+                [kind == LIGHT_SPOT, kind == LIGHT_AREA],
+                [np.minimum(0.5 * np.asarray(lt.spot_size, np.float64), np.pi), 0.5 * np.pi], np.pi)
+        if len(self.tri_index) and not self.two_sided:
+            t = slice(self.n_analytic, self.n_analytic + len(self.tri_index))
+            axis[t], spread[t] = self.tri_normal, 0.5 * np.pi
+        return axis, spread
+
     def _emitter_boxes(self):
         """(E, 2, 3) bounds of each emitter (a point for suns and the world)."""
         boxes = np.zeros((len(self._weights), 2, 3), np.float32)
@@ -214,7 +232,9 @@ class LightSet:
         if self._far is None:
             self._p_local = 1.0
         box = self._boxes[self._local_ids]
-        grid = LightGrid(*self._bounds, weights[self._local_ids], box[:, 0], box[:, 1])
+        axis, spread = self._emitter_cones()
+        grid = LightGrid(*self._bounds, weights[self._local_ids], box[:, 0], box[:, 1],
+                         axis[self._local_ids], spread[self._local_ids])
         self.grid = grid if grid.useful else None
 
     @property

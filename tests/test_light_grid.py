@@ -10,7 +10,7 @@ from chi2 import pooled_chi2
 from core.light_grid import DEFENSIVE, MAX_CLUSTERS, LightGrid
 from core.lights import LightSet
 from core import Materials
-from core.scene import LIGHT_POINT, Lights, make_scene
+from core.scene import LIGHT_AREA, LIGHT_POINT, LIGHT_SPOT, Lights, make_scene
 
 
 def random_grid(rng, count, lo=(-4, -3, 0), hi=(4, 3, 3)):
@@ -116,3 +116,49 @@ def test_one_lamp_of_two_triangles_is_chosen_by_power_alone():
     mats = Materials.from_list([{"emission": (5, 5, 5)}, {"base_color": (0.5, 0.5, 0.5)}])
     ls = LightSet(make_scene(v, t, material_ids=np.int32([0, 0, 1]), materials=mats, lights=Lights.empty()))
     assert ls.count == 2 and ls.grid is None
+
+
+def spots_and_panels(rng):
+    """Downlights (30 degree half cones) and ceiling panels facing down, over a 10 m floor."""
+    rows = []
+    for x, y in rng.uniform(-4.5, 4.5, (8, 2)):
+        rows.append({"kind": LIGHT_SPOT, "position": (x, y, 2.0), "direction": (0, 0, -1),
+                     "power": (300, 280, 250), "radius": 0.05, "spot_size": np.radians(60),
+                     "spot_blend": 0.2})
+    for x, y in rng.uniform(-4.5, 4.5, (4, 2)):
+        rows.append({"kind": LIGHT_AREA, "position": (x, y, 2.9), "direction": (0, 0, -1),
+                     "axis_u": (1, 0, 0), "axis_v": (0, -1, 0), "power": (100, 100, 100),
+                     "size_u": 0.5, "size_v": 0.5})
+    floor = np.float32([[-5, -5, 0], [5, -5, 0], [5, 5, 3], [-5, 5, 3]])
+    return rows, floor
+
+
+def test_emitters_facing_away_are_chosen_by_power_alone(rng):
+    rows, floor = spots_and_panels(rng)
+    scene = make_scene(floor, np.int32([[0, 1, 2], [0, 2, 3]]), lights=Lights.from_list(rows))
+    ls = LightSet(scene)
+    assert ls.grid is not None
+    idx = np.arange(len(rows))
+    power = np.array([ls._weights[i] for i in idx])
+    share = DEFENSIVE * power / power.sum()
+    above = ls.selection_pmf(idx, np.repeat([[rows[0]["position"][0], rows[0]["position"][1], 2.98]],
+                                            len(rows), axis=0))
+    assert np.allclose(above[:8], share[:8], rtol=1e-6)         # no spot shines up
+    below = ls.selection_pmf(idx, np.repeat([[rows[0]["position"][0], rows[0]["position"][1], 0.05]],
+                                            len(rows), axis=0))
+    assert below[0] > 3 * share[0] / DEFENSIVE     # over 3x what its power alone gives it
+
+
+def test_nee_with_spots_and_panels_is_unbiased(rng):
+    rows, floor = spots_and_panels(rng)
+    tri = np.int32([[0, 1, 2], [0, 2, 3]])
+    ls = LightSet(make_scene(floor, tri, lights=Lights.from_list(rows)))
+    assert ls.grid is not None
+    n = np.float64([0, 0, 1])
+    for p in ([-4.0, -4.0, 0.0], [0.5, 0.5, 1.0], [3.5, 2.0, 2.0]):
+        est, err = irradiance(ls, p, n, rng, 300_000)
+        ref, ref_err = np.zeros(3), np.zeros(3)
+        for row in rows:
+            e, r = irradiance(LightSet(make_scene(floor, tri, lights=Lights.from_list([row]))), p, n, rng, 20_000)
+            ref, ref_err = ref + e, np.hypot(ref_err, r)
+        assert (np.abs(est - ref) <= 4.5 * np.hypot(err, ref_err) + 1e-9).all(), (p, est, ref)

@@ -108,6 +108,10 @@ def _scene(source):
         emission.inputs["Emission Strength"].default_value = 30.0
         for i, (x, y) in enumerate(rng.uniform(-2.7, 2.7, (6, 2))):
             _mesh(f"Cube{i}", *_box((x, y, 0.0), (x + 0.15, y + 0.15, 0.15)), glow)
+        for i, (x, y) in enumerate(rng.uniform(-2.0, 2.0, (3, 2))):      # downlights and panels:
+            _light(f"Down{i}", "SPOT", (x, y, 2.2), energy=300.0,       # the grid weighs their cones
+                   spot_size=math.radians(50), spot_blend=0.2, shadow_soft_size=0.05)
+            _light(f"Panel{i}", "AREA", (-x, -y, 2.6), energy=80.0, size=0.4)
 
     cam_data = bpy.data.cameras.new("Camera")
     cam_data.lens = 30.0
