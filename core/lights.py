@@ -1,4 +1,6 @@
-"""Emitters: analytic lights, emissive triangles and the world, chosen in proportion to power.
+"""Emitters: analytic lights, emissive triangles and the world, chosen in
+proportion to power and, among lamps and emissive triangles, by where the
+shading point is (core/light_grid.py).
 
 ``LightSet.sample`` picks one emitter per shading point and returns a direction,
 its distance (INF_DIST for the sun and the world), the incident radiance and
@@ -33,6 +35,7 @@ from .sampling import Distribution1D, dot, luminance, square_to_uniform_triangle
 from .scene import LIGHT_AREA, LIGHT_POINT, LIGHT_SPOT, LIGHT_SUN
 
 __all__ = ["INF_DIST", "LightSample", "LightSet"]
+
 
 def _radius(scene):
     """Half the diagonal of the scene's bounds (at least 1e-3)."""
