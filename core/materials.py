@@ -201,10 +201,16 @@ def transparency(scene, surf):
 
 
 def holdout(scene, surf):
-    """(N,) share of the pixel a Holdout closure cuts out at camera hits ``surf``."""
+    """(N,) share of the pixel a Holdout closure, or a holdout object, cuts
+    out at camera hits ``surf``."""
     sh = shading(scene)
-    return _per_hit(scene, surf, sh.holdout_row, sh.holdout_ids, True,
-                    lambda c, n: np.clip(c.get("holdout", n), 0.0, 1.0))
+    out = _per_hit(scene, surf, sh.holdout_row, sh.holdout_ids, True,
+                   lambda c, n: np.clip(c.get("holdout", n), 0.0, 1.0))
+    objects = getattr(scene, "object_holdout", None)
+    if objects is not None and len(objects):
+        oid = np.take(scene.object_ids, surf.prim)
+        out = np.where(np.take(objects, np.clip(oid, 0, len(objects) - 1)), np.float32(1), out)
+    return out
 
 
 def _per_hit(scene, surf, row, ids_with, camera_ray, of_closure):
@@ -231,7 +237,7 @@ def camera_alpha(scene, n, index, surf):
     hit = np.zeros(n, np.float32)
     hit[index] = 1.0
     keep = np.ones(n, np.float32)
-    if shading(scene).holdout_ids and len(index):
+    if (shading(scene).holdout_ids or getattr(scene, "object_holdout", None) is not None) and len(index):
         keep[index] = 1.0 - holdout(scene, surf)
     alpha = hit * keep if scene.film_transparent else 1.0 - hit * (1.0 - keep)
     return alpha.astype(np.float32), keep

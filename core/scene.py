@@ -189,6 +189,9 @@ class Scene:
     # Blender's ray visibility per object id: (O, 3) bool for camera rays,
     # shadow rays and every other ray (Diffuse); None: visible to all.
     ray_visibility: np.ndarray = None
+    # Per object id, a holdout for the camera (Object or collection Holdout):
+    # camera rays see a hole, other rays the object (None: no such object).
+    object_holdout: np.ndarray = None
     # Film > Transparent: the world seen directly is left out and the image
     # gets an alpha of the pixels' coverage by geometry.
     film_transparent: bool = False

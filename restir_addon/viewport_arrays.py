@@ -81,6 +81,7 @@ class CombinedArrays:
         a["random"] = np.array([object_random(k[:2]) for k in instances], np.float32)
         a["pass_index"] = np.array([it.pass_index for it in its], np.float32)
         a["attributes"] = attribute_tables([it.attributes for it in its])
+        a["holdout"] = np.array([it.holdout for it in its], bool)
 
     def free(self):
         self.arrays = None

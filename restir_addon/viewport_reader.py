@@ -11,7 +11,7 @@ import bpy
 import numpy as np
 
 from ..core.scene import Lights
-from .export import film_transparent, instance_key, ray_visibility, visibility_warnings
+from .export import film_transparent, instance_key, is_holdout, ray_visibility, visibility_warnings
 from .export.camera import export_camera, render_size
 from .export.lights import is_supported, light_row, row_signature
 from .export.materials import MaterialTable
@@ -162,7 +162,8 @@ class SceneReader:
                 key = key + (len(instances),)
             instances[key] = _Instance(mesh, np.array(inst.matrix_world, np.float64), slot_ids,
                                        tuple(obj.color), ray_visibility(obj), int(obj.pass_index),
-                                       object_attributes(inst, obj, attribute_needs))
+                                       object_attributes(inst, obj, attribute_needs),
+                                       is_holdout(obj, depsgraph.view_layer))
             for text in visibility_warnings(obj, depsgraph.view_layer):
                 self.warnings(text)
             if _animated(inst.parent if inst.is_instance else obj):
@@ -185,6 +186,7 @@ class SceneReader:
                      or instances[k].color != old[k].color
                      or instances[k].pass_index != old[k].pass_index
                      or instances[k].attributes != old[k].attributes
+                     or instances[k].holdout != old[k].holdout
                      or instances[k].visibility != old[k].visibility}
         layout = set(instances) != set(old) or list(instances) != list(old)
         self._instances = instances

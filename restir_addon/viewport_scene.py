@@ -112,6 +112,8 @@ class SceneApplier:
                              "Random": a["random"], "Object Index": a["pass_index"], **a["attributes"]}
         if not a["visibility"].all():
             scene.ray_visibility = a["visibility"]
+        if a["holdout"].any():
+            scene.object_holdout = a["holdout"]
         scene.film_transparent = self._film_transparent
         previous = self._scene
         if previous is not None and previous.shaders is scene.shaders \

@@ -26,6 +26,7 @@ class _Instance:
     visibility: tuple = (True, True, True)      # visible to camera, shadow and other rays
     pass_index: int = 0             # Object > Relations > Pass Index (Object Info's Object Index)
     attributes: tuple = ()          # ((need, rgba), ...): Attribute nodes of type Object or Instancer
+    holdout: bool = False           # Object or collection Holdout: a hole for the camera
 
 
 def _clean_mesh(mesh, warn=None, name=""):

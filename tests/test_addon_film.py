@@ -57,10 +57,14 @@ def test_holdout_cuts_out_the_object(addon, mode):
     assert np.allclose(right[..., 3], 1.0) and np.allclose(right[..., :3], 0.5, atol=1e-3)
 
 
-def test_holdout_in_a_mirror_as_cycles(addon):
+@pytest.mark.parametrize("how", ["material", "object", "collection"])
+def test_holdout_in_a_mirror_as_cycles(addon, how):
     """A holdout box on a mirror floor with Film > Transparent: cut out where
     the camera sees it, not in its reflection (reflected paths leave
-    Cycles' transparent background too): alpha and colour as Cycles'."""
+    Cycles' transparent background too): alpha and colour as Cycles'. The
+    box is a holdout by its material (its reflection black), or as an object
+    or a collection (Object > Visibility > Holdout, the view layer's
+    collection Holdout: its reflection keeps its own material)."""
     import os
     import tempfile
 
@@ -72,9 +76,20 @@ def test_holdout_in_a_mirror_as_cycles(addon):
     set_resolution(scene, 48, 48)
     _assign(["Floor"], _principled("Mirror", **{"Base Color": (0.9, 0.9, 0.9, 1), "Metallic": 1.0,
                                                  "Roughness": 0.02}))
-    mat, tree, out = _new_material("Hold")
-    tree.links.new(tree.nodes.new("ShaderNodeHoldout").outputs[0], out.inputs["Surface"])
-    _assign(["ShortBox"], mat)
+    box = bpy.data.objects["ShortBox"]
+    if how == "material":
+        mat, tree, out = _new_material("Hold")
+        tree.links.new(tree.nodes.new("ShaderNodeHoldout").outputs[0], out.inputs["Surface"])
+        _assign(["ShortBox"], mat)
+    elif how == "object":
+        box.is_holdout = True
+    else:
+        held = bpy.data.collections.new("Held")
+        scene.collection.children.link(held)
+        for owner in list(box.users_collection):
+            owner.objects.unlink(box)
+        held.objects.link(box)
+        bpy.context.view_layer.layer_collection.children["Held"].holdout = True
     scene.render.film_transparent = True
     s = scene.render.image_settings
     s.file_format, s.color_depth, s.color_mode = "OPEN_EXR", "32", "RGBA"

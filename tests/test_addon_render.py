@@ -164,9 +164,9 @@ def test_unsupported_node_reported(addon, reports, tmp_path):
 
 def test_what_is_not_rendered_is_reported(addon, reports, tmp_path):
     """Volume objects, point clouds, hair (curves and particles), volume
-    shading, displacement, shadow catchers, holdout and indirect-only objects
-    or collections and motion blur each say they are not rendered; the render
-    goes on."""
+    shading, displacement, shadow catchers, indirect-only objects or
+    collections and motion blur each say they are not rendered; the render
+    goes on. (Holdout objects are rendered: tests/test_addon_film.py.)"""
     import bpy
     scene = lit_plane_scene()
     hair = bpy.data.hair_curves.new("Fur")
@@ -183,7 +183,6 @@ def test_what_is_not_rendered_is_reported(addon, reports, tmp_path):
     tree.links.new(tree.nodes.new("ShaderNodeDisplacement").outputs[0], out.inputs["Displacement"])
     add_mesh("Foggy", *rect(-1, 1, -1, 1, z=1.0), mat=mat)
     add_mesh("Catcher", *rect(-1, 1, -1, 1, z=0.2)).is_shadow_catcher = True
-    add_mesh("Cutout", *rect(-1, 1, -1, 1, z=0.3)).is_holdout = True
     side = bpy.data.collections.new("Side")
     scene.collection.children.link(side)
     scene.collection.objects.unlink(add_mesh("Bouncer", *rect(-1, 1, -1, 1, z=0.4)))
@@ -194,7 +193,7 @@ def test_what_is_not_rendered_is_reported(addon, reports, tmp_path):
     warnings = reports.of("WARNING")
     for text in ("'Smoke': volume objects", "'Dots': point clouds", "'Fur': hair curves",
                  "'Furry': particle hair", "'Fog': volume shading",
-                 "'Fog': displacement", "'Catcher': shadow catcher", "'Cutout': holdout",
+                 "'Fog': displacement", "'Catcher': shadow catcher",
                  "'Bouncer': indirect only", "Motion blur"):
         assert any(text in w for w in warnings), (text, reports.log)
     img = read_exr(tmp_path / "what.exr")

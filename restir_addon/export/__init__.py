@@ -80,15 +80,28 @@ def ray_visibility(obj):
                  for kind in ("camera", "shadow", "diffuse", "glossy", "transmission"))
 
 
+def is_holdout(obj, view_layer=None):
+    """Object > Visibility > Holdout, or its collection's Holdout in the view
+    layer: the camera sees a hole where it is (core/materials.camera_alpha);
+    other rays see the object as it is, as in Cycles."""
+    if getattr(obj, "is_holdout", False):
+        return True
+    original = obj.original if obj.original is not None else obj
+    try:
+        return bool(original.holdout_get(view_layer=view_layer)) if view_layer is not None else False
+    except (AttributeError, TypeError, RuntimeError):
+        return False
+
+
 def visibility_warnings(obj, view_layer=None):
     """Warnings for what Object > Visibility or the view layer's collections
     ask of an object that is not rendered here (it renders as an ordinary
-    object): shadow catcher, holdout, indirect only."""
+    object): shadow catcher, indirect only."""
     out = []
     if getattr(obj, "is_shadow_catcher", False):
         out.append(f"Object '{obj.name}': shadow catcher is not supported; it renders as an ordinary object")
     original = obj.original if obj.original is not None else obj
-    for label, getter in (("holdout", "holdout_get"), ("indirect only", "indirect_only_get")):
+    for label, getter in (("indirect only", "indirect_only_get"),):
         try:        # the object's own flag or its collection's in the view layer (on the original)
             flagged = getattr(original, getter)(view_layer=view_layer) if view_layer is not None else False
         except (AttributeError, TypeError, RuntimeError):
@@ -127,7 +140,7 @@ def export_scene(depsgraph, width=None, height=None):
     verts, tris, normals, uvs, mids, oids, light_rows, corners = [], [], [], [], [], [], [], []
     offset = 0
     object_index = {}           # instance key -> object id
-    object_matrices, object_colors, visibility, pass_index, attributes = [], [], [], [], []
+    object_matrices, object_colors, visibility, pass_index, attributes, holdouts = [], [], [], [], [], []
     for inst in depsgraph.object_instances:
         obj = inst.object
         if obj.type == "LIGHT":
@@ -162,6 +175,7 @@ def export_scene(depsgraph, width=None, height=None):
             visibility.append(ray_visibility(obj))
             pass_index.append(obj.pass_index)
             attributes.append(object_attributes(inst, obj, attribute_needs))
+            holdouts.append(is_holdout(obj, depsgraph.view_layer))
             for text in visibility_warnings(obj, depsgraph.view_layer):
                 warn(text)
         oids.append(np.full(len(mesh.triangles), object_index[key], np.int32))
@@ -199,6 +213,8 @@ def export_scene(depsgraph, width=None, height=None):
     shading(scene)      # compiles the graphs now: their warnings join the export's
     if visibility and not all(all(v) for v in visibility):
         scene.ray_visibility = np.asarray(visibility, bool)
+    if any(holdouts):
+        scene.object_holdout = np.asarray(holdouts, bool)
     scene.warnings = warn.items + scene.warnings
     scene.object_keys = list(object_index)
     scene.object_names = [key[0] for key in object_index]
