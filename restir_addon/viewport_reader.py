@@ -161,7 +161,8 @@ class SceneReader:
             while key in instances:     # the same key twice: keep both, numbered
                 key = key + (len(instances),)
             instances[key] = _Instance(mesh, np.array(inst.matrix_world, np.float64), slot_ids,
-                                       tuple(obj.color), ray_visibility(obj), int(obj.pass_index),
+                                       tuple(obj.color), ray_visibility(obj, depsgraph.view_layer),
+                                       int(obj.pass_index),
                                        object_attributes(inst, obj, attribute_needs),
                                        is_holdout(obj, depsgraph.view_layer))
             for text in visibility_warnings(obj, depsgraph.view_layer):

@@ -164,9 +164,10 @@ def test_unsupported_node_reported(addon, reports, tmp_path):
 
 def test_what_is_not_rendered_is_reported(addon, reports, tmp_path):
     """Volume objects, point clouds, hair (curves and particles), volume
-    shading, displacement, shadow catchers, indirect-only objects or
-    collections and motion blur each say they are not rendered; the render
-    goes on. (Holdout objects are rendered: tests/test_addon_film.py.)"""
+    shading, displacement, shadow catchers and motion blur each say they are
+    not rendered; the render goes on. (Holdout objects and collections are
+    rendered: tests/test_addon_film.py; Indirect Only collections:
+    tests/test_light_paths_vs_cycles.py.)"""
     import bpy
     scene = lit_plane_scene()
     hair = bpy.data.hair_curves.new("Fur")
@@ -183,18 +184,12 @@ def test_what_is_not_rendered_is_reported(addon, reports, tmp_path):
     tree.links.new(tree.nodes.new("ShaderNodeDisplacement").outputs[0], out.inputs["Displacement"])
     add_mesh("Foggy", *rect(-1, 1, -1, 1, z=1.0), mat=mat)
     add_mesh("Catcher", *rect(-1, 1, -1, 1, z=0.2)).is_shadow_catcher = True
-    side = bpy.data.collections.new("Side")
-    scene.collection.children.link(side)
-    scene.collection.objects.unlink(add_mesh("Bouncer", *rect(-1, 1, -1, 1, z=0.4)))
-    side.objects.link(bpy.data.objects["Bouncer"])
-    bpy.context.view_layer.layer_collection.children["Side"].indirect_only = True
     scene.render.use_motion_blur = True
     render_exr(scene, tmp_path / "what.exr")
     warnings = reports.of("WARNING")
     for text in ("'Smoke': volume objects", "'Dots': point clouds", "'Fur': hair curves",
                  "'Furry': particle hair", "'Fog': volume shading",
-                 "'Fog': displacement", "'Catcher': shadow catcher",
-                 "'Bouncer': indirect only", "Motion blur"):
+                 "'Fog': displacement", "'Catcher': shadow catcher", "Motion blur"):
         assert any(text in w for w in warnings), (text, reports.log)
     img = read_exr(tmp_path / "what.exr")
     assert_valid(img, (32, 32))

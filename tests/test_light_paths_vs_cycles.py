@@ -146,3 +146,30 @@ def test_lamp_hidden_by_kind_matches_cycles(addon):
         print(f"lamp hidden from {kind}: ratio {ratio:.4f} block chi {chi:.2f} change {change:.1f}")
         assert abs(ratio - 1) < 0.02 and chi < 2.5, kind
         assert change > 5, (kind, change)
+
+
+def test_indirect_only_collection_matches_cycles(addon):
+    """The mirror sphere in an Indirect Only collection (the view layer's):
+    the camera does not see it, its shadow, its reflection in the glass
+    sphere and the light it bounces stay, as Cycles renders them."""
+    import bpy
+    scene = open_example("cornell_box.blend")
+    set_resolution(scene, SIZE, SIZE)
+    _mirror_and_glass()
+    ours, cycles = _limits(8, 8, 8, 8)
+    ours(scene, SAMPLES, 3)
+    baseline = np.minimum(render_image(scene), CLAMP)
+    side = bpy.data.collections.new("Side")
+    scene.collection.children.link(side)
+    mirror = next(o for o in scene.objects if o.active_material is not None
+                  and o.active_material.name == "Mirror")
+    for ob in (mirror,):
+        for owner in list(ob.users_collection):
+            owner.objects.unlink(ob)
+        side.objects.link(ob)
+    bpy.context.view_layer.layer_collection.children["Side"].indirect_only = True
+    ratio, chi, img, var = _compare(scene, ours, cycles)
+    change = _chi(baseline, img, var)
+    print(f"indirect only: ratio {ratio:.4f} block chi {chi:.2f} change {change:.1f}")
+    assert abs(ratio - 1) < 0.02 and chi < 2.5
+    assert change > 5

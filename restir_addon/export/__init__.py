@@ -73,11 +73,20 @@ def object_random(key):
     return int.from_bytes(digest, "little") / 2.0 ** 32
 
 
-def ray_visibility(obj):
+def ray_visibility(obj, view_layer=None):
     """Object > Visibility > Ray Visibility: (camera, shadow, diffuse, glossy,
-    transmission)."""
-    return tuple(bool(getattr(obj, "visible_" + kind, True))
-                 for kind in ("camera", "shadow", "diffuse", "glossy", "transmission"))
+    transmission). An object of an Indirect Only collection in the view layer
+    is hidden from camera rays: it shows through shadows and light only, as
+    Cycles renders it (a holdout takes precedence)."""
+    out = [bool(getattr(obj, "visible_" + kind, True))
+           for kind in ("camera", "shadow", "diffuse", "glossy", "transmission")]
+    if out[0] and view_layer is not None and not is_holdout(obj, view_layer):
+        original = obj.original if obj.original is not None else obj
+        try:
+            out[0] = not original.indirect_only_get(view_layer=view_layer)
+        except (AttributeError, TypeError, RuntimeError):
+            pass
+    return tuple(out)
 
 
 def is_holdout(obj, view_layer=None):
@@ -94,21 +103,11 @@ def is_holdout(obj, view_layer=None):
 
 
 def visibility_warnings(obj, view_layer=None):
-    """Warnings for what Object > Visibility or the view layer's collections
-    ask of an object that is not rendered here (it renders as an ordinary
-    object): shadow catcher, indirect only."""
+    """Warnings for what Object > Visibility asks of an object that is not
+    rendered here (it renders as an ordinary object): shadow catcher."""
     out = []
     if getattr(obj, "is_shadow_catcher", False):
         out.append(f"Object '{obj.name}': shadow catcher is not supported; it renders as an ordinary object")
-    original = obj.original if obj.original is not None else obj
-    for label, getter in (("indirect only", "indirect_only_get"),):
-        try:        # the object's own flag or its collection's in the view layer (on the original)
-            flagged = getattr(original, getter)(view_layer=view_layer) if view_layer is not None else False
-        except (AttributeError, TypeError, RuntimeError):
-            flagged = False
-        if flagged:
-            out.append(f"Object '{obj.name}': {label} (object or collection) is not supported; "
-                       "it renders as an ordinary object")
     return out
 
 
@@ -172,7 +171,7 @@ def export_scene(depsgraph, width=None, height=None):
             object_index[key] = len(object_index)
             object_matrices.append(np.array(inst.matrix_world, np.float32))
             object_colors.append(tuple(obj.color))
-            visibility.append(ray_visibility(obj))
+            visibility.append(ray_visibility(obj, depsgraph.view_layer))
             pass_index.append(obj.pass_index)
             attributes.append(object_attributes(inst, obj, attribute_needs))
             holdouts.append(is_holdout(obj, depsgraph.view_layer))
