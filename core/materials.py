@@ -193,11 +193,12 @@ def _may_be_transparent(graph):
     return False
 
 
-def transparency(scene, surf):
-    """(N,) probability that a ray passes the surface at hits ``surf``."""
+def transparency(scene, surf, shadow=False):
+    """(N,) probability that a ray passes the surface at hits ``surf``;
+    shadow: the rays are shadow rays (Light Path > Is Shadow Ray is 1)."""
     sh = shading(scene)
     return _per_hit(scene, surf, sh.transparent_row, sh.transparent_ids, False,
-                    _pass_probability)
+                    _pass_probability, shadow)
 
 
 def holdout(scene, surf):
@@ -213,7 +214,7 @@ def holdout(scene, surf):
     return out
 
 
-def _per_hit(scene, surf, row, ids_with, camera_ray, of_closure):
+def _per_hit(scene, surf, row, ids_with, camera_ray, of_closure, shadow_ray=False):
     """A scalar of the closures at hits: ``row`` (per material) where the
     material is constant, ``of_closure(closure, n)`` of the per-hit graphs of
     the materials in ``ids_with``."""
@@ -225,7 +226,7 @@ def _per_hit(scene, surf, row, ids_with, camera_ray, of_closure):
             continue
         rows = np.nonzero(ids == m)[0]
         if len(rows):
-            closure = sh.compiled[m].closure(SurfaceGeometry(scene, surf.subset(rows), camera_ray))
+            closure = sh.compiled[m].closure(SurfaceGeometry(scene, surf.subset(rows), camera_ray, shadow_ray))
             out[rows] = of_closure(closure, len(rows))
     return out
 

@@ -84,9 +84,10 @@ class TransparentAccel:
         return self._closest(origins, directions, tmax, self._hidden_by_any,
                              lambda rows, prim: self._hidden_by_kind[kinds[rows], prim])
 
-    def _closest(self, origins, directions, tmax, hidden, hidden_at=None):
+    def _closest(self, origins, directions, tmax, hidden, hidden_at=None, shadow=False):
         """hidden: (T,) triangles some of the rays pass; hidden_at(rows, prim):
-        which of those rays pass their hit triangles (all of them if None)."""
+        which of those rays pass their hit triangles (all of them if None);
+        shadow: shadow rays (materials see Light Path > Is Shadow Ray)."""
         o = np.ascontiguousarray(origins, np.float32).reshape(-1, 3)
         d = np.ascontiguousarray(directions, np.float32).reshape(-1, 3)
         hits = self.inner.intersect_closest(o, d, tmax)
@@ -103,7 +104,7 @@ class TransparentAccel:
             go = np.take(hidden, hits.prim[rows]) if hidden_at is None else hidden_at(rows, hits.prim[rows])
             if not go.all():
                 maybe = np.nonzero(~go)[0]
-                go[maybe] = self._passes(o, d, hits, rows[maybe], k)
+                go[maybe] = self._passes(o, d, hits, rows[maybe], k, shadow)
             rows = rows[go]
             if len(rows) == 0:
                 break
@@ -116,11 +117,11 @@ class TransparentAccel:
             hits.t[rows] = np.where(again.prim >= 0, again.t + travelled[rows], np.inf)
         return hits
 
-    def _passes(self, o, d, hits, rows, k):
+    def _passes(self, o, d, hits, rows, k, shadow=False):
         """Which of the hit rows go through their surface."""
         sub = type(hits)(hits.t[rows], hits.prim[rows], hits.u[rows], hits.v[rows])
         surf, _ = surface_hits(self.scene, o[rows], d[rows], sub)
-        p = self.pass_probability(self.scene, surf)
+        p = self.pass_probability(self.scene, surf, shadow)
         u = _hash_uniform(hits.prim[rows], hits.t[rows], k + 1, hits.u[rows], hits.v[rows])
         return u < p
 
@@ -132,7 +133,7 @@ class TransparentAccel:
         o = np.ascontiguousarray(origins, np.float32).reshape(-1, 3)[rows]
         d = np.ascontiguousarray(directions, np.float32).reshape(-1, 3)[rows]
         limit = np.array(np.broadcast_to(np.asarray(tmax, np.float32), (len(blocked),)))[rows]
-        hits = self._closest(o, d, limit, self.hidden["shadow"])
+        hits = self._closest(o, d, limit, self.hidden["shadow"], shadow=True)
         blocked[rows] = hits.hit & (hits.t < limit)
         return blocked
 

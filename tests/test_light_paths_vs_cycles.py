@@ -173,3 +173,33 @@ def test_indirect_only_collection_matches_cycles(addon):
     print(f"indirect only: ratio {ratio:.4f} block chi {chi:.2f} change {change:.1f}")
     assert abs(ratio - 1) < 0.02 and chi < 2.5
     assert change > 5
+
+
+def test_glass_transparent_to_shadow_rays_matches_cycles(addon):
+    """The usual glass trick: Mix Shader of Glass and Transparent by Light
+    Path > Is Shadow Ray. Shadow rays pass the glass sphere (its shadow is
+    light), other rays see glass, as Cycles renders it."""
+    import bpy
+    from node_families import _new_material
+    scene = open_example("cornell_box.blend")
+    set_resolution(scene, SIZE, SIZE)
+    _mirror_and_glass()
+    ours, cycles = _limits(8, 8, 8, 8)
+    ours(scene, SAMPLES, 3)
+    baseline = np.minimum(render_image(scene), CLAMP)
+    mat, tree, out = _new_material("ShadowlessGlass")
+    glass, clear = tree.nodes.new("ShaderNodeBsdfGlass"), tree.nodes.new("ShaderNodeBsdfTransparent")
+    glass.inputs["Roughness"].default_value, glass.inputs["IOR"].default_value = 0.05, 1.45
+    mix, path = tree.nodes.new("ShaderNodeMixShader"), tree.nodes.new("ShaderNodeLightPath")
+    tree.links.new(path.outputs["Is Shadow Ray"], mix.inputs["Fac"])
+    tree.links.new(glass.outputs[0], mix.inputs[1])
+    tree.links.new(clear.outputs[0], mix.inputs[2])
+    tree.links.new(mix.outputs[0], out.inputs["Surface"])
+    sphere = next(o for o in scene.objects if o.active_material is not None
+                  and o.active_material.name == "Glass")
+    sphere.active_material = mat
+    ratio, chi, img, var = _compare(scene, ours, cycles)
+    change = _chi(baseline, img, var)
+    print(f"glass clear to shadows: ratio {ratio:.4f} block chi {chi:.2f} change {change:.1f}")
+    assert abs(ratio - 1) < 0.02 and chi < 2.5
+    assert change > 5

@@ -53,11 +53,12 @@ class SurfaceGeometry:
 
     is_world = False
 
-    def __init__(self, scene, surf, camera_ray=False):
+    def __init__(self, scene, surf, camera_ray=False, shadow_ray=False):
         self.scene = scene
         self.surf = surf
         self.n = len(surf)
         self.camera_ray = camera_ray
+        self.shadow_ray = shadow_ray    # a shadow ray deciding whether it passes (Light Path)
         self._cache = {}
 
     def _cached(self, key, make):

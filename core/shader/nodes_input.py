@@ -89,13 +89,25 @@ def object_info(inp, geom, n, sh):
 @varying
 @node("LIGHT_PATH")
 def light_path(inp, geom, n, sh):
-    cam = np.float32(1.0 if geom.camera_ray else 0.0)
     zero = np.float32(0)
+    if getattr(geom, "shadow_ray", False):
+        # A shadow ray deciding whether it passes a surface: Cycles evaluates
+        # it with the shadow flag alone (glass made transparent to shadows).
+        out = {name: zero for name in _LIGHT_PATH_OUTPUTS}
+        out["Is Shadow Ray"] = np.float32(1)
+        return out
+    cam = np.float32(1.0 if geom.camera_ray else 0.0)
     return {"Is Camera Ray": cam, "Is Shadow Ray": zero, "Is Diffuse Ray": 1 - cam, "Is Glossy Ray": zero,
             "Is Singular Ray": zero, "Is Reflection Ray": 1 - cam, "Is Transmission Ray": zero,
             "Is Volume Scatter Ray": zero, "Ray Length": zero, "Ray Depth": 1 - cam,
             "Diffuse Depth": 1 - cam, "Glossy Depth": zero, "Transparent Depth": zero,
             "Transmission Depth": zero, "Portal Depth": zero}
+
+
+_LIGHT_PATH_OUTPUTS = ("Is Camera Ray", "Is Shadow Ray", "Is Diffuse Ray", "Is Glossy Ray", "Is Singular Ray",
+                       "Is Reflection Ray", "Is Transmission Ray", "Is Volume Scatter Ray", "Ray Length",
+                       "Ray Depth", "Diffuse Depth", "Glossy Depth", "Transparent Depth",
+                       "Transmission Depth", "Portal Depth")
 
 
 @varying
