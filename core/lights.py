@@ -29,7 +29,7 @@ from .analytic_lights import (INF_DIST, AnalyticLights, _by_code, _empty_sample,
                               _rows_where, _same_index)
 from .environment import scene_environment
 from .light_grid import LightGrid
-from .materials import emissive_triangles
+from .materials import emission_at_points, emissive_triangles, shading
 from .rows import divide, gather, rows_finite, scale, scatter
 from .sampling import Distribution1D, dot, luminance, square_to_uniform_triangle
 from .scene import LIGHT_AREA, LIGHT_POINT, LIGHT_SPOT, LIGHT_SUN
@@ -87,6 +87,16 @@ class LightSet:
         self.tri_area = (0.5 * np.linalg.norm(cross, axis=1)).astype(np.float32)
         self.tri_normal = (cross / np.maximum(2 * self.tri_area, 1e-30)[:, None]).astype(np.float32)
         self.tri_emission = emission[lum > 0]
+        # Emissive triangles whose graph varies over the surface: light
+        # samples read the emission at their own point (emission_at_points),
+        # as Cycles evaluates the emitter's shader there; tri_emission (the
+        # centre's) only weighs their selection.
+        varying = shading(scene).emitting
+        self._scene = scene
+        self.tri_textured = np.isin(scene.material_ids[self.tri_index], varying) if varying and len(tri) \
+            else None
+        if self.tri_textured is not None and not self.tri_textured.any():
+            self.tri_textured = None
         # Map from any triangle to its slot among emissive ones (-1 if not emissive).
         self.tri_slot = np.full(scene.triangle_count, -1, np.int32)
         self.tri_slot[self.tri_index] = np.arange(len(self.tri_index), dtype=np.int32)
@@ -147,6 +157,7 @@ class LightSet:
         whose radius suns and the world are weighed, are taken anew.
         Returns self."""
         self.lights = scene.lights
+        self._scene = scene
         bounds = scene.bounds()
         if not all(np.array_equal(a, b) for a, b in zip(bounds, self._bounds)):
             self._bounds = bounds
@@ -339,6 +350,14 @@ class LightSet:
         visible_side = np.abs(cos_l) > 1e-7 if self.two_sided else cos_l > 1e-7
         pdf = np.where(visible_side, d2 / np.maximum(np.abs(cos_l), 1e-12) / _per_row(self.tri_area, slot, one), 0.0)
         rad = _rows_where(visible_side, _per_row(self.tri_emission, slot, one))
+        if self.tri_textured is not None:
+            rows = np.nonzero(np.take(self.tri_textured, slot) & visible_side)[0]
+            if len(rows):
+                s = np.take(slot, rows)
+                bary = np.stack([np.take(b1, rows), np.take(b2, rows)], axis=1)
+                e = emission_at_points(self._scene, np.take(self.tri_index, s), gather(q, rows),
+                                       gather(self.tri_normal, s), -gather(wi, rows), bary)
+                rad = scatter(np.array(rad, np.float32), rows, e)
         return wi, d.astype(np.float32), rad, pdf.astype(np.float32), np.zeros(len(li), bool)
 
     def _sample_world(self, li, p, u, n=None):

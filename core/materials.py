@@ -68,6 +68,9 @@ class SceneShading:
         np.maximum(self.emission, 0.0, out=self.emission)
         self.table = table
         self.varying = [i for i, s in enumerate(self.compiled) if s is not None]
+        # Graphs that vary over the surface and may emit: every ray sees their
+        # emission at its own hit (a screen's image), not the triangle's centre.
+        self.emitting = [i for i in self.varying if _may_emit(shaders[i])]
         # Graphs reading Light Path: camera rays see them evaluated as camera rays.
         self.camera_ids = [i for i in self.varying
                            if any(node.kind == "LIGHT_PATH" for node in shaders[i].nodes)]
@@ -154,23 +157,66 @@ def surface_params(scene, surf, camera_ray=False):
 
 
 def camera_emission(scene, surf, lights):
-    """(N, 3) emission camera rays see at the hits ``surf``: the emissive
-    triangles' (graphs at their centres, as other rays see them), except for
-    materials whose graph reads Light Path (an emitter seen only by the
-    camera, or hidden from it): their graph at each hit, as a camera ray."""
+    """(N, 3) emission camera rays see at the hits ``surf`` (surface_emission
+    as camera rays: graphs reading Light Path see Is Camera Ray)."""
+    return surface_emission(scene, surf, lights, camera=True)
+
+
+def surface_emission(scene, surf, lights, camera=False):
+    """(N, 3) emission leaving the hits ``surf`` toward their rays: the
+    emissive triangles' for uniform materials, and each hit's own for graphs
+    that vary over the surface and may emit (an image on a screen), as
+    Cycles evaluates emission where a ray lands. camera: camera rays (graphs
+    reading Light Path are evaluated at each hit as such)."""
     n = len(surf.prim)
     em = np.zeros((n, 3), np.float32)
     if len(lights.tri_index):
         em += lights.triangle_emission(surf.prim, surf.front)
     sh = shading(scene)
-    for m in sh.camera_ids:
+    ids = set(sh.emitting) | (set(sh.camera_ids) if camera else set())
+    for m in sorted(ids):
         rows = np.nonzero(surf.material == m)[0]
         if len(rows):
-            closure = sh.compiled[m].closure(SurfaceGeometry(scene, surf.subset(rows), True))
+            closure = sh.compiled[m].closure(SurfaceGeometry(scene, surf.subset(rows), camera))
             e = np.maximum(closure.get("emission", len(rows)), 0.0)
             if not lights.two_sided:
                 e = e * surf.front[rows, None]
             scatter(em, rows, e.astype(np.float32))
+    return em
+
+
+def _may_emit(graph):
+    """Whether a graph can have emission (an Emission node, or a Principled
+    BSDF whose Emission Strength is linked or above zero)."""
+    for node in graph.nodes:
+        if node.kind == "EMISSION":
+            return True
+        if node.kind == "BSDF_PRINCIPLED":
+            strength = node.inputs.get("Emission Strength", 0.0)
+            if not isinstance(strength, (int, float)) or strength > 0:
+                return True
+    return False
+
+
+def emission_at_points(scene, prim, p, normal, wo, bary):
+    """(N, 3) emission of the graphs that vary over the surface at points p
+    (N, 3) on triangles prim (N,) (barycentrics bary (N, 2), unit face
+    normals (N, 3), wo (N, 3) toward the receiver); zero for other
+    materials. Light samples on textured emitters read it (lights.py)."""
+    from .interaction import SurfaceHits   # noqa: PLC0415
+    sh = shading(scene)
+    em = np.zeros((len(prim), 3), np.float32)
+    mats = np.take(scene.material_ids, prim)
+    facing = (normal * wo).sum(axis=1) >= 0
+    ng = np.where(facing[:, None], normal, -normal).astype(np.float32)
+    for m in sh.emitting:
+        rows = np.nonzero(mats == m)[0]
+        if len(rows):
+            hits = SurfaceHits(p=p[rows], ng=ng[rows], ns=ng[rows].copy(), wo=wo[rows],
+                               prim=prim[rows].astype(np.int32), material=np.full(len(rows), m, np.int32),
+                               front=facing[rows], bary=bary[rows].astype(np.float32))
+            closure = sh.compiled[m].closure(SurfaceGeometry(scene, hits))
+            scatter(em, rows, np.maximum(closure.get("emission", len(rows)), 0.0).astype(np.float32))
     return em
 
 

@@ -153,6 +153,27 @@ def procedural(scene):
     _assign(["BackWall", "Floor", "TallBox", "ShortBox"], mat)
 
 
+def brick(scene):
+    """Brick Texture (offset rows, squashed rows, smooth mortar, bias) as
+    colour, and its Fac as roughness."""
+    mat, tree, out = _new_material("Bricks")
+    coords = tree.nodes.new("ShaderNodeTexCoord")
+    b = tree.nodes.new("ShaderNodeTexBrick")
+    b.offset, b.offset_frequency, b.squash, b.squash_frequency = 0.3, 3, 1.6, 2
+    for name, value in (("Scale", 4.0), ("Mortar Size", 0.04), ("Mortar Smooth", 0.3), ("Bias", 0.2),
+                        ("Brick Width", 0.6), ("Row Height", 0.3)):
+        b.inputs[name].default_value = value
+    b.inputs["Color1"].default_value = (0.7, 0.25, 0.1, 1)
+    b.inputs["Color2"].default_value = (0.3, 0.6, 0.8, 1)
+    b.inputs["Mortar"].default_value = (0.9, 0.9, 0.85, 1)
+    tree.links.new(coords.outputs["Generated"], b.inputs["Vector"])
+    p = tree.nodes.new("ShaderNodeBsdfPrincipled")
+    tree.links.new(b.outputs["Color"], p.inputs["Base Color"])
+    tree.links.new(b.outputs["Fac"], p.inputs["Roughness"])
+    tree.links.new(p.outputs[0], out.inputs["Surface"])
+    _assign(["BackWall", "Floor", "TallBox"], mat)
+
+
 def shaders(scene):
     """Mix Shader by Layer Weight, Add Shader, Glossy, Emission."""
     mat, tree, out = _new_material("Mixed")
@@ -369,6 +390,6 @@ def anisotropic(scene):
                   "Anisotropic Rotation": 0.25}))])
 
 
-FAMILIES = {"image": image, "procedural": procedural, "noise": noise, "shaders": shaders, "normals": normals,
+FAMILIES = {"image": image, "procedural": procedural, "brick": brick, "noise": noise, "shaders": shaders, "normals": normals,
             "attributes": attributes, "emission": emission, "glass": glass, "alpha": alpha,
             "hdri": hdri, "sheen": sheen, "anisotropic": anisotropic}

@@ -1,6 +1,7 @@
 """Spot (also with colour temperature and a light node tree), sun (also with
-Cast Shadow off), emissive Principled mesh, world lighting, and many lamps
-and glowing cubes at once against Cycles.
+Cast Shadow off), emissive Principled mesh, an emitter with a textured
+colour, world lighting, and many lamps and glowing cubes at once against
+Cycles.
 
 A floor with two boxes (Diffuse BSDF) is built in code and lit by one source at
 a time; both engines render it twice with independent seeds. As in
@@ -95,6 +96,22 @@ def _scene(source):
         _mesh("Emitter", [[-1, -3.5, 4.5], [1, -3.5, 4.5], [1, -2.5, 4.5], [-1, -2.5, 4.5]],
               [[0, 1, 2, 3]], mat)
 
+    elif source == "textured_emitter":
+        # An emitting panel whose colour is a checker of red and blue: light
+        # samples read the emission where they land (a triangle's centre
+        # would give one colour per triangle).
+        mat = bpy.data.materials.new("Checkered")
+        tree = mat.node_tree
+        tree.nodes.clear()
+        out, emit = tree.nodes.new("ShaderNodeOutputMaterial"), tree.nodes.new("ShaderNodeEmission")
+        checker = tree.nodes.new("ShaderNodeTexChecker")
+        checker.inputs["Scale"].default_value = 2.0
+        checker.inputs["Color1"].default_value = (1.0, 0.1, 0.05, 1)
+        checker.inputs["Color2"].default_value = (0.05, 0.2, 1.0, 1)
+        tree.links.new(checker.outputs["Color"], emit.inputs["Color"])
+        emit.inputs["Strength"].default_value = 25.0
+        tree.links.new(emit.outputs[0], out.inputs["Surface"])
+        _mesh("Panel", [[-2, -3.5, 4.5], [2, -3.5, 4.5], [2, 0.5, 4.5], [-2, 0.5, 4.5]], [[0, 1, 2, 3]], mat)
     elif source == "many_lamps":
         # Lamps and small glowing cubes spread over the floor: emitters are
         # chosen by where the shading point is (core/light_grid.py).
@@ -125,7 +142,7 @@ def _scene(source):
 
 
 @pytest.mark.parametrize("source", ["spot", "warm_spot", "sun", "shadowless_sun", "emitter", "world",
-                                    "many_lamps"])
+                                    "many_lamps", "textured_emitter"])
 def test_lights_match_cycles(addon, source):
     r = compare_with_cycles(_scene(source), SAMPLES, BOUNCES, BLOCK)
     assert np.isfinite(r["ours"]).all()

@@ -100,8 +100,8 @@ def radiance_from_surface(ctx, surf, seeds, bounce0, max_bounces, frame=None, co
         frame = None
         rows = keep[idx]
         alive, beta, pdf = alive[idx], gather(beta, rows), pdf[idx]
-        if len(ctx.lights.tri_index):
-            le = ctx.lights.triangle_emission(surf.prim, surf.front)
+        if len(ctx.lights.tri_index) or materials.shading(scene).emitting:
+            le = materials.surface_emission(scene, surf, ctx.lights)
             emissive = np.nonzero(row_max(le) > 0)[0]
             if len(emissive):
                 pdf_l = ctx.lights.pdf_triangle(surf.prim[emissive], gather(prev.p, rows[emissive]),

@@ -30,7 +30,7 @@ indirect light is this sample's own path-traced estimate, returned apart.
 
 import numpy as np
 
-from .. import bsdf, samplers
+from .. import bsdf, materials, samplers
 from ..accel import offset_origins
 from ..integrators.base import direct_light
 from ..integrators.bounces import DIFFUSE, binding, first_bounce_counts
@@ -196,8 +196,8 @@ def initial_samples(ctx, gb, seed, frame, sample, max_bounces, sampling=COSINE, 
                                                              kinds=None if kinds is None else kinds[rows]))
     surf2, hit_idx = surface_hits(scene, o, wi_r, hits)
     rows2 = rows[hit_idx]
-    if len(lights.tri_index):
-        le = lights.triangle_emission(surf2.prim, surf2.front)
+    if len(lights.tri_index) or materials.shading(scene).emitting:
+        le = materials.surface_emission(scene, surf2, lights)
         if (row_max(le) > 0).any():
             pdf_l = lights.pdf_triangle(surf2.prim, gather(surf.p, rows2), surf2.p, -surf2.wo)
             scatter_add(d, rows2, scale(gather(weight, rows2) * le, power_heuristic(pdf[rows2], pdf_l)))

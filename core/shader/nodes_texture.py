@@ -1,5 +1,5 @@
-"""Texture nodes: Image Texture, Environment Texture, Checker, Gradient and
-the Sky Texture (its models in sky.py).
+"""Texture nodes: Image Texture, Environment Texture, Checker, Brick,
+Gradient and the Sky Texture (its models in sky.py).
 
 Unlinked vectors default as in Cycles: Image Texture reads the active UV
 map, procedural textures read Generated coordinates, Environment Texture the
@@ -103,6 +103,59 @@ def checker_texture(inp, geom, n, sh):
     fac = ((i[:, 0] == i[:, 1]).astype(np.int64) == i[:, 2]).astype(np.float32)
     c1, c2 = inp.color("Color1", (0.8, 0.8, 0.8)), inp.color("Color2", (0.2, 0.2, 0.2))
     return {"Color": f32(np.where(fac[:, None] > 0, c1, c2)), "Fac": fac}
+
+
+def _brick_noise(n):
+    """Cycles' brick_noise: a float in [0, 1) of a uint32 (wrapping arithmetic)."""
+    n = (n + np.uint32(1013)) & np.uint32(0x7FFFFFFF)
+    n = (n >> np.uint32(13)) ^ n
+    nn = (n * (n * n * np.uint32(60493) + np.uint32(19990303)) + np.uint32(1376312589)) & np.uint32(0x7FFFFFFF)
+    return np.float32(0.5) * (nn.astype(np.float32) / np.float32(1073741824.0))
+
+
+@varying
+@node("TEX_BRICK")
+def brick_texture(inp, geom, n, sh):
+    """Cycles' Brick Texture (svm_brick): rows of bricks, every
+    ``offset_frequency``-th row shifted by ``offset`` of a brick and every
+    ``squash_frequency``-th row's bricks ``squash`` times as wide; each
+    brick's tint between Color1 and Color2 a hash of its row and number
+    (plus Bias); mortar within Mortar Size of a brick's edge, blended over
+    Mortar Smooth."""
+    p = _coords(inp, geom) * f32(inp.float("Scale", 5.0))[..., None]
+    x_in, y_in = p[:, 0].astype(np.float32), p[:, 1].astype(np.float32)
+    width = np.broadcast_to(f32(inp.float("Brick Width", 0.5)), (geom.n,)).astype(np.float32)
+    height = np.broadcast_to(f32(inp.float("Row Height", 0.25)), (geom.n,)).astype(np.float32)
+    mortar_size = f32(inp.float("Mortar Size", 0.02))
+    smooth = f32(inp.float("Mortar Smooth", 0.1))
+    bias = f32(inp.float("Bias", 0.0))
+    offset_amount = np.float32(n.props.get("offset", 0.5))
+    offset_every = int(n.props.get("offset_frequency", 2))
+    squash = np.float32(n.props.get("squash", 1.0))
+    squash_every = int(n.props.get("squash_frequency", 2))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        row = np.floor(y_in / height).astype(np.int64)
+        offset = np.zeros(geom.n, np.float32)
+        if offset_every and squash_every:
+            width = np.where(row % squash_every != 0, width, width * squash).astype(np.float32)
+            offset = np.where(row % offset_every != 0, np.float32(0), width * offset_amount).astype(np.float32)
+        brick = np.floor((x_in + offset) / width).astype(np.int64)
+        x = (x_in + offset) - width * brick.astype(np.float32)
+        y = y_in - height * row.astype(np.float32)
+    key = (((row << 16) + (brick & 0xFFFF)) & 0xFFFFFFFF).astype(np.uint32)
+    tint = np.clip(_brick_noise(key) + bias, 0.0, 1.0)
+    edge = np.minimum(np.minimum(x, y), np.minimum(width - x, height - y))
+    ramp = 1.0 - edge / np.where(mortar_size != 0, mortar_size, 1.0)
+    t = np.clip(ramp / np.where(smooth != 0, smooth, 1.0), 0.0, 1.0)
+    blend = np.where(ramp < smooth, t * t * (3.0 - 2.0 * t), 1.0)
+    mortar = np.where(edge >= mortar_size, 0.0, np.where(smooth == 0, 1.0, blend)).astype(np.float32)
+    mortar = np.nan_to_num(mortar, nan=0.0)
+    c1, c2 = inp.color("Color1", (0.8, 0.8, 0.8)), inp.color("Color2", (0.2, 0.2, 0.2))
+    c3 = inp.color("Mortar", (0.0, 0.0, 0.0))
+    tint = np.where(mortar != 1.0, tint, 0.0)[:, None]
+    brick_color = (1.0 - tint) * c1 + tint * c2
+    color = brick_color * (1.0 - mortar[:, None]) + c3 * mortar[:, None]
+    return {"Color": f32(color), "Fac": mortar}
 
 
 def gradient(kind, p):
