@@ -148,17 +148,33 @@ def test_lamp_hidden_by_kind_matches_cycles(addon):
         assert change > 5, (kind, change)
 
 
-def test_indirect_only_collection_matches_cycles(addon):
-    """The mirror sphere in an Indirect Only collection (the view layer's):
-    the camera does not see it, its shadow, its reflection in the glass
-    sphere and the light it bounces stay, as Cycles renders them."""
-    import bpy
+def _spheres_and_baseline():
+    """The Cornell box with the mirror and glass spheres, the two engines'
+    setups (8 bounces of each kind) and our render of it as it is."""
     scene = open_example("cornell_box.blend")
     set_resolution(scene, SIZE, SIZE)
     _mirror_and_glass()
     ours, cycles = _limits(8, 8, 8, 8)
     ours(scene, SAMPLES, 3)
-    baseline = np.minimum(render_image(scene), CLAMP)
+    return scene, ours, cycles, np.minimum(render_image(scene), CLAMP)
+
+
+def _assert_matches_and_changes(scene, ours, cycles, baseline, label):
+    """Both engines agree on the changed scene, and the change moved our
+    picture by more than the noise (so the comparison could fail)."""
+    ratio, chi, img, var = _compare(scene, ours, cycles)
+    change = _chi(baseline, img, var)
+    print(f"{label}: ratio {ratio:.4f} block chi {chi:.2f} change {change:.1f}")
+    assert abs(ratio - 1) < 0.02 and chi < 2.5
+    assert change > 5
+
+
+def test_indirect_only_collection_matches_cycles(addon):
+    """The mirror sphere in an Indirect Only collection (the view layer's):
+    the camera does not see it, its shadow, its reflection in the glass
+    sphere and the light it bounces stay, as Cycles renders them."""
+    import bpy
+    scene, ours, cycles, baseline = _spheres_and_baseline()
     side = bpy.data.collections.new("Side")
     scene.collection.children.link(side)
     mirror = next(o for o in scene.objects if o.active_material is not None
@@ -168,25 +184,15 @@ def test_indirect_only_collection_matches_cycles(addon):
             owner.objects.unlink(ob)
         side.objects.link(ob)
     bpy.context.view_layer.layer_collection.children["Side"].indirect_only = True
-    ratio, chi, img, var = _compare(scene, ours, cycles)
-    change = _chi(baseline, img, var)
-    print(f"indirect only: ratio {ratio:.4f} block chi {chi:.2f} change {change:.1f}")
-    assert abs(ratio - 1) < 0.02 and chi < 2.5
-    assert change > 5
+    _assert_matches_and_changes(scene, ours, cycles, baseline, "indirect only")
 
 
 def test_glass_transparent_to_shadow_rays_matches_cycles(addon):
     """The usual glass trick: Mix Shader of Glass and Transparent by Light
     Path > Is Shadow Ray. Shadow rays pass the glass sphere (its shadow is
     light), other rays see glass, as Cycles renders it."""
-    import bpy
     from node_families import _new_material
-    scene = open_example("cornell_box.blend")
-    set_resolution(scene, SIZE, SIZE)
-    _mirror_and_glass()
-    ours, cycles = _limits(8, 8, 8, 8)
-    ours(scene, SAMPLES, 3)
-    baseline = np.minimum(render_image(scene), CLAMP)
+    scene, ours, cycles, baseline = _spheres_and_baseline()
     mat, tree, out = _new_material("ShadowlessGlass")
     glass, clear = tree.nodes.new("ShaderNodeBsdfGlass"), tree.nodes.new("ShaderNodeBsdfTransparent")
     glass.inputs["Roughness"].default_value, glass.inputs["IOR"].default_value = 0.05, 1.45
@@ -198,8 +204,4 @@ def test_glass_transparent_to_shadow_rays_matches_cycles(addon):
     sphere = next(o for o in scene.objects if o.active_material is not None
                   and o.active_material.name == "Glass")
     sphere.active_material = mat
-    ratio, chi, img, var = _compare(scene, ours, cycles)
-    change = _chi(baseline, img, var)
-    print(f"glass clear to shadows: ratio {ratio:.4f} block chi {chi:.2f} change {change:.1f}")
-    assert abs(ratio - 1) < 0.02 and chi < 2.5
-    assert change > 5
+    _assert_matches_and_changes(scene, ours, cycles, baseline, "glass clear to shadows")
