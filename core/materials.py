@@ -186,10 +186,10 @@ def surface_emission(scene, surf, lights, camera=False):
 
 
 def _may_emit(graph):
-    """Whether a graph can have emission (an Emission node, or a Principled
-    BSDF whose Emission Strength is linked or above zero)."""
+    """Whether a graph can have emission (an Emission or Background node, or
+    a Principled BSDF whose Emission Strength is linked or above zero)."""
     for node in graph.nodes:
-        if node.kind == "EMISSION":
+        if node.kind in ("EMISSION", "BACKGROUND"):
             return True
         if node.kind == "BSDF_PRINCIPLED":
             strength = node.inputs.get("Emission Strength", 0.0)
@@ -354,10 +354,11 @@ def valid_reflection_normal(ng, wo, n):
 def emissive_triangles(scene):
     """(indices, (N, 3) emitted radiance) of the triangles that may emit:
     those of materials with emission or a graph that varies over the surface
-    (the others are skipped without a per-triangle pass over them)."""
+    and may emit (_may_emit; the others are skipped without a per-triangle
+    pass over them)."""
     sh = shading(scene)
     maybe = (np.abs(sh.emission).max(axis=1) > 0) if len(sh.emission) else np.zeros(0, bool)
-    maybe[sh.varying] = True
+    maybe[sh.emitting] = True
     if not maybe.any() or scene.triangle_count == 0:
         return np.zeros(0, np.int64), np.zeros((0, 3), np.float32)
     ids = np.clip(scene.material_ids, 0, len(maybe) - 1)
@@ -367,23 +368,16 @@ def emissive_triangles(scene):
 
 def triangle_emission(scene, subset=None):
     """(T, 3) emitted radiance per triangle (or per triangle of ``subset``):
-    the material's, and for graphs that vary over the surface, the graph at
-    the triangle's centre."""
+    the material's, and for graphs that vary over the surface and may emit,
+    the graph at the triangle's centre."""
     sh = shading(scene)
     all_ids = scene.material_ids if subset is None else scene.material_ids[subset]
     em = gather(sh.emission, all_ids) if len(all_ids) else np.zeros((0, 3), np.float32)
-    for m in sh.varying:
-        local = np.nonzero(all_ids == m)[0]
+    local = np.nonzero(np.isin(all_ids, sh.emitting))[0] if sh.emitting else []
+    if len(local):
         tris = local if subset is None else subset[local]
-        if len(tris) == 0:
-            continue
-        from .interaction import SurfaceHits   # noqa: PLC0415
-        corners = scene.vertices[scene.triangles[tris]]
-        centre = corners.mean(axis=1).astype(np.float32)
+        centre = scene.vertices[scene.triangles[tris]].mean(axis=1).astype(np.float32)
         n = scene.face_normals[tris] if scene.face_normals is not None else np.zeros_like(centre)
-        hits = SurfaceHits(p=centre, ng=n, ns=n.copy(), wo=n, prim=tris.astype(np.int32),
-                           material=np.full(len(tris), m, np.int32), front=np.ones(len(tris), bool),
-                           bary=np.full((len(tris), 2), 1 / 3, np.float32))
-        closure = sh.compiled[m].closure(SurfaceGeometry(scene, hits))
-        scatter(em, local, closure.get("emission", len(tris)))
+        bary = np.full((len(tris), 2), 1 / 3, np.float32)
+        scatter(em, local, emission_at_points(scene, tris, centre, n, n, bary))
     return em
