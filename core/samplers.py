@@ -88,6 +88,26 @@ def lens_uniforms(camera, seeds):
     return uniform2(seeds, DIM_CAMERA + 2)
 
 
+# The R2 sequence (Roberts 2018): point k is frac(k * (1/g, 1/g^2)), g the
+# plastic number. Any run of consecutive points covers the unit square evenly,
+# wherever the run starts.
+_R2 = (0.7548776662466927, 0.5698402909980532)
+
+
+def sequence2(index, rotation):
+    """(N, 2) float32 uniforms: point ``index`` (an integer, or one per row)
+    of the R2 sequence, shifted toroidally by each row's ``rotation`` (N, 2)
+    in [0, 1). With a rotation fixed per pixel and uniform, every point is
+    uniform (averages stay unbiased), and a pixel's points over consecutive
+    indices are spread evenly rather than at random (Cranley-Patterson)."""
+    k = np.asarray(index, np.int64) % (1 << 40)
+    k = k.astype(np.float64)[..., None] * np.array(_R2)
+    point = (k - np.floor(k)).astype(np.float32)
+    u = rotation + point
+    u -= np.floor(u)
+    return np.minimum(u, np.float32(0.99999994), out=u)
+
+
 def bounce_dim(bounce, offset):
     return DIM_BOUNCE_BASE + bounce * DIMS_PER_BOUNCE + offset
 

@@ -183,3 +183,39 @@ def test11_stratified_light_uniforms(count):
     one_set = np.sort(u_sel[:count].astype(np.float64))
     gaps = np.diff(np.concatenate([one_set, [one_set[0] + 1.0]]))
     assert np.allclose(gaps, 1.0 / count, atol=1e-6)
+
+
+def test12_sequence2_points_are_uniform_and_runs_spread():
+    """Each point of the rotated R2 sequence is uniform over the rotations
+    (so a mean of them stays unbiased); any 16 consecutive points put at most
+    2 in each cell of a 4x4 grid (independent points put 4 or more in one
+    cell about one time in four); and the share of a pixel behind an edge
+    from 16 consecutive points has a third of the squared error of 16
+    independent points' (measured 0.0039 against 0.0130)."""
+    rot = samplers.uniform2(_seeds(3)[:20000], 0)
+    for index in (0, 1, 7, 123456789):
+        u = samplers.sequence2(index, rot)
+        assert u.dtype == np.float32 and (u >= 0).all() and (u < 1).all()
+        assert _pair_p(u[:, 0], u[:, 1]) > 1e-3
+    rng = np.random.default_rng(4)
+    for start in rng.integers(0, 1 << 40, 100):
+        u = samplers.sequence2(np.arange(start, start + 16), np.tile(rng.random((1, 2), np.float32), (16, 1)))
+        assert np.histogram2d(u[:, 0], u[:, 1], bins=4, range=[[0, 1], [0, 1]])[0].max() <= 2
+    # A straight edge through the pixel at a random angle and place; its
+    # covered share from a 64x64 grid of point centres.
+    n = 2000
+    angle, cut = rng.uniform(0, np.pi, n), rng.uniform(-0.3, 0.3, n)
+    normal = np.stack([np.cos(angle), np.sin(angle)], axis=1).astype(np.float32)
+
+    def coverage(u):                                    # u (n, k, 2)
+        return (np.einsum("nkc,nc->nk", u - 0.5, normal) > cut[:, None]).mean(axis=1)
+
+    g = (np.arange(64, dtype=np.float32) + 0.5) / 64
+    grid = np.stack(np.meshgrid(g, g), axis=-1).reshape(1, -1, 2)
+    exact = coverage(np.broadcast_to(grid, (n, 4096, 2)))
+    seq = np.stack([samplers.sequence2(np.arange(s, s + 16), np.tile(r, (16, 1)))
+                    for s, r in zip(rng.integers(0, 1 << 30, n), rng.random((n, 2), np.float32))])
+    iid = rng.random((n, 16, 2)).astype(np.float32)
+    err_seq, err_iid = coverage(seq) - exact, coverage(iid) - exact
+    assert abs(err_seq.mean()) < 0.01 and abs(err_iid.mean()) < 0.01
+    assert np.mean(err_seq ** 2) < np.mean(err_iid ** 2) / 2.0, (np.mean(err_seq ** 2), np.mean(err_iid ** 2))

@@ -125,6 +125,9 @@ def escaped_radiance(lights, wi, pdf_bsdf, n, beta):
     return scale(beta * lights.world_radiance(wi), w)
 
 
+CAMERA_JITTER = 0x7E7       # key of each pixel's rotation of its pixel filter sequence
+
+
 @dataclass
 class PassResult:
     """One sample per pixel of a whole image; rows of pixel index y * width + x."""
@@ -142,7 +145,11 @@ def camera_pass(ctx, width, height, seed, frame, sample, max_bounces, pixel_filt
     n = len(pix)
     seeds = samplers.path_seeds(seed, frame, pix, sample)
     xy = np.stack([pix % width, pix // width], axis=1).astype(np.float32) + 0.5
-    xy += pixel_filter.offsets(samplers.uniform2(seeds, samplers.DIM_CAMERA))
+    # The pixel filter's positions over a render's samples follow the R2
+    # sequence, rotated per pixel and frame: each uniform, together evenly
+    # spread (as Cycles' Sobol pattern), so edges converge faster.
+    rotation = samplers.uniform2(samplers.hash_keys(seed, frame, pix, CAMERA_JITTER), samplers.DIM_CAMERA)
+    xy += pixel_filter.offsets(samplers.sequence2(sample, rotation))
     o, d, tmax = generate_rays(scene.camera, width, height, xy, samplers.lens_uniforms(scene.camera, seeds))
     hits = ctx.accel.intersect_closest(o, d, tmax, camera=True)
 

@@ -220,7 +220,7 @@ class ReSTIRGI:
 
         def new_samples(a, b):
             t = time.perf_counter()
-            part = trace_rows(ctx, settings.seed, frame, pixel_filter, True, a, b)
+            part = trace_rows(ctx, settings.seed, frame, pixel_filter, True, a, b, self.frames)
             t = spent("gbuffer", t)
             prev = reproject(scene, part, history, motion) if settings.temporal else np.full(b - a, -1, np.int64)
             hold = reprojected_hold(prev, history.noise_hold) if history is not None else None
@@ -258,7 +258,7 @@ class ReSTIRGI:
         prev_pix, temporal = one.prev_pix, one.temporal
         t = time.perf_counter()
         refined = refine_edges(ctx, settings.seed, frame, pixel_filter, one.seen, one.lum_direct,
-                                settings.edge_samples)
+                                settings.edge_samples, self.frames)
         spent("gbuffer", t)
         img = FrameImage(one.valid, one.depth, one.object_id, one.p, one.n, one.ng, gb_width, gb_height)
         gate = light_range(one.lum_direct, one.valid, gb_width, gb_height) if moved else None

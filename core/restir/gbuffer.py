@@ -141,12 +141,12 @@ class VisiblePoints:
     ns: np.ndarray
 
 
-def trace_gbuffer(ctx, seed, frame, pixel_filter, jitter=True):
+def trace_gbuffer(ctx, seed, frame, pixel_filter, jitter=True, stream_index=None):
     """Trace one primary ray per pixel (jittered by the pixel filter), the
     pixel ranges on the context's workers."""
     scene = ctx.scene
     n = scene.width * scene.height
-    parts = ctx.workers.map(lambda a, b: trace_rows(ctx, seed, frame, pixel_filter, jitter, a, b), n)
+    parts = ctx.workers.map(lambda a, b: trace_rows(ctx, seed, frame, pixel_filter, jitter, a, b, stream_index), n)
     ranges = [(g.offset, g.offset + len(g.valid)) for g in parts]      # (a twin may split elsewhere)
     if len(parts) == 1:
         return parts[0]
@@ -163,17 +163,30 @@ def trace_gbuffer(ctx, seed, frame, pixel_filter, jitter=True):
 CAMERA_SAMPLE = 0xC0FFEE      # the sample number of the G-buffer's camera rays (path_seeds)
 
 
-def camera_rays(scene, pixel_filter, pix, seeds):
+def camera_rays(scene, pixel_filter, pix, seeds, jitter=None):
     """Camera rays (o, d, tmax) through pixels pix (N,), jittered by the
     pixel filter and over the lens (depth of field) with each seed's camera
-    dimensions (centres through the lens centre if seeds is None)."""
+    dimensions (centres through the lens centre if seeds is None). jitter:
+    (N, 2) uniforms for the pixel filter instead of the seeds' own."""
     w, h = scene.width, scene.height
     xy = np.stack([pix % w, pix // w], axis=1).astype(np.float32) + 0.5
     lens = None
     if seeds is not None:
-        xy += pixel_filter.offsets(samplers.uniform2(seeds, samplers.DIM_CAMERA))
+        xy += pixel_filter.offsets(samplers.uniform2(seeds, samplers.DIM_CAMERA) if jitter is None else jitter)
         lens = samplers.lens_uniforms(scene.camera, seeds)
     return generate_rays(scene.camera, w, h, xy, lens)
+
+
+def stream_jitter(seed, pix, index):
+    """(N, 2) pixel filter uniforms of pixels pix (N,) for point ``index``
+    (an integer, or (N,) integers) of their image stream's sequence: the R2
+    sequence, rotated per pixel. Each point is uniform, as a hashed one, but
+    a pixel's points over consecutive indices (its frames) cover its filter
+    evenly, so the running means and a still's mean of frames converge
+    faster at edges, as Cycles' Sobol pattern does over its samples (slit
+    room, unbiased still of 64 frames: MSE 0.028 -> 0.018; docs/plan.md)."""
+    return samplers.sequence2(index, samplers.uniform2(samplers.hash_keys(seed, pix, CAMERA_SAMPLE),
+                                                       samplers.DIM_CAMERA))
 
 
 def seen_directly(ctx, o, d, tmax, hits, surf, idx):
@@ -189,14 +202,17 @@ def seen_directly(ctx, o, d, tmax, hits, surf, idx):
     return emission
 
 
-def trace_rows(ctx, seed, frame, pixel_filter, jitter, start, stop):
-    """The GBuffer of pixels [start, stop) (offset start)."""
+def trace_rows(ctx, seed, frame, pixel_filter, jitter, start, stop, stream_index=None):
+    """The GBuffer of pixels [start, stop) (offset start). stream_index: the
+    frame's place in its image stream, whose pixel filter positions then
+    follow stream_jitter (else each frame's are hashed anew)."""
     scene = ctx.scene
     w, h = scene.width, scene.height
     n = stop - start
     pix = np.arange(start, stop, dtype=np.int64)
-    o, d, tmax = camera_rays(scene, pixel_filter, pix, samplers.path_seeds(seed, frame, pix, CAMERA_SAMPLE)
-                             if jitter else None)
+    seeds = samplers.path_seeds(seed, frame, pix, CAMERA_SAMPLE) if jitter else None
+    along = stream_jitter(seed, pix, stream_index) if jitter and stream_index is not None else None
+    o, d, tmax = camera_rays(scene, pixel_filter, pix, seeds, along)
     hits = ctx.accel.intersect_closest(o, d, tmax, camera=True)
     surf, idx = surface_hits(scene, o, d, hits)
     emission = seen_directly(ctx, o, d, tmax, hits, surf, idx)

@@ -36,7 +36,7 @@ from ..parallel import concat_rows
 from ..rows import gather
 from ..sampling import dot, luminance
 from .adaptive_direct import neighbourhood_range
-from .gbuffer import CAMERA_SAMPLE, camera_rays, seen_directly
+from .gbuffer import CAMERA_SAMPLE, camera_rays, seen_directly, stream_jitter
 
 EDGE_CONTRAST = 1.0     # neighbours differing by more than this x the image's mean luminance
 OWN_CONTRAST = 4.0      # ... and by more than this: no history of it on a moving view
@@ -70,20 +70,25 @@ def edge_pixels(lum_seen, lum_other, width, height):
     return edges, span[edges] > OWN_CONTRAST * scale[edges]
 
 
-def mean_seen_directly(ctx, seed, frame, pixel_filter, pixels, samples):
+def mean_seen_directly(ctx, seed, frame, pixel_filter, pixels, samples, stream_index=None):
     """(E, 3) mean radiance seen directly through ``samples`` jittered camera
-    rays in each of ``pixels`` (E,), the first of them the G-buffer's own."""
+    rays in each of ``pixels`` (E,). Without a stream_index the first of
+    them is the G-buffer's own; with one (the frame's place in its stream,
+    gbuffer.stream_jitter), a pixel's rays are the points stream_index *
+    samples + k of its pixel filter sequence: spread evenly over the pixel,
+    and over the frames of a still."""
     samples = max(1, int(samples))
     rep = np.repeat(np.asarray(pixels, np.int64), samples)
     k = np.tile(np.arange(samples, dtype=np.int64), len(pixels))
     seeds = samplers.path_seeds(seed, frame, rep, CAMERA_SAMPLE + k)
-    o, d, tmax = camera_rays(ctx.scene, pixel_filter, rep, seeds)
+    along = None if stream_index is None else stream_jitter(seed, rep, stream_index * samples + k)
+    o, d, tmax = camera_rays(ctx.scene, pixel_filter, rep, seeds, along)
     hits = ctx.accel.intersect_closest(o, d, tmax, camera=True)
     le = seen_directly(ctx, o, d, tmax, hits, *_sides(ctx.scene, d, hits))
     return le.reshape(len(pixels), samples, 3).mean(axis=1, dtype=np.float64).astype(np.float32)
 
 
-def _mean_seen_on_workers(ctx, seed, frame, pixel_filter, pixels, samples):
+def _mean_seen_on_workers(ctx, seed, frame, pixel_filter, pixels, samples, stream_index):
     """mean_seen_directly with the rays split over the context's workers
     (the edge pixels of a sunlit courtyard or a room of small lamps take up
     to one ray per image pixel): each range of rays takes the pixels whose
@@ -92,7 +97,7 @@ def _mean_seen_on_workers(ctx, seed, frame, pixel_filter, pixels, samples):
 
     def part(a, b):
         lo, hi = -(-a // samples), -(-b // samples)
-        return mean_seen_directly(ctx, seed, frame, pixel_filter, pixels[lo:hi], samples)
+        return mean_seen_directly(ctx, seed, frame, pixel_filter, pixels[lo:hi], samples, stream_index)
 
     return concat_rows(ctx.workers.map(part, len(pixels) * samples))
 
@@ -120,10 +125,11 @@ class RefinedSeen:
         return RefinedSeen(self.own[a:b], self.ceiling[a:b])
 
 
-def refine_edges(ctx, seed, frame, pixel_filter, seen, lum_direct, samples):
+def refine_edges(ctx, seed, frame, pixel_filter, seen, lum_direct, samples, stream_index=None):
     """The radiance seen directly, ``seen`` (P, 3, the G-buffer rays'; in
     place), of the edge pixels replaced by the mean over ``samples`` camera
-    rays. lum_direct (P,): luminance of the direct light. Returns a
+    rays (mean_seen_directly; stream_index: the frame's place in its
+    stream). lum_direct (P,): luminance of the direct light. Returns a
     RefinedSeen, or None where there is nothing to refine (``samples`` 1 or
     no pixel filter: then every ray of a pixel is the same)."""
     scene = ctx.scene
@@ -135,7 +141,7 @@ def refine_edges(ctx, seed, frame, pixel_filter, seen, lum_direct, samples):
     if len(edges):
         # At most about one extra ray per pixel of the image in all.
         samples = min(samples, max(2, len(seen) // len(edges)))
-        seen[edges] = _mean_seen_on_workers(ctx, seed, frame, pixel_filter, edges, samples)
+        seen[edges] = _mean_seen_on_workers(ctx, seed, frame, pixel_filter, edges, samples, stream_index)
         own[edges[bright]] = True
         lum[edges] = luminance(seen[edges])
     # A pixel whose ray missed a moving emitter can still hold part of it
