@@ -1,4 +1,4 @@
-"""Texture nodes: Image Texture, Environment Texture, Checker, Brick,
+"""Texture nodes: Image Texture, Environment Texture, Checker, Brick, Wave, Magic,
 Gradient and the Sky Texture (its models in sky.py).
 
 Unlinked vectors default as in Cycles: Image Texture reads the active UV
@@ -9,6 +9,7 @@ ray direction. Image lookups (filtering, extension, alpha) are core/texture.py's
 import numpy as np
 
 from .evaluate import f32, node, varying
+from .nodes_noise import fbm
 
 MAGENTA = np.array([1.0, 0.0, 1.0], np.float32)
 
@@ -156,6 +157,72 @@ def brick_texture(inp, geom, n, sh):
     brick_color = (1.0 - tint) * c1 + tint * c2
     color = brick_color * (1.0 - mortar[:, None]) + c3 * mortar[:, None]
     return {"Color": f32(color), "Fac": mortar}
+
+
+@varying
+@node("TEX_WAVE")
+def wave_texture(inp, geom, n, sh):
+    """Cycles' Wave Texture (svm_wave): bands along an axis or the diagonal,
+    or rings around an axis or a point, 20 units of phase per unit, shifted
+    by Phase Offset and by Distortion times a centred fBM of the point
+    (Detail, Detail Scale, Detail Roughness), through a sine, saw or
+    triangle profile."""
+    p = _coords(inp, geom) * f32(inp.float("Scale", 5.0)).reshape(-1, 1)
+    p = ((p + np.float32(1e-6)) * np.float32(0.999999)).astype(np.float32)
+    if n.props.get("wave_type", "BANDS") == "RINGS":
+        keep = {"X": (0, 1, 1), "Y": (1, 0, 1), "Z": (1, 1, 0)}.get(n.props.get("rings_direction", "X"), (1, 1, 1))
+        r = p * f32(keep)
+        phase = np.sqrt((r * r).sum(axis=1)) * np.float32(20.0)
+    else:
+        axis = n.props.get("bands_direction", "X")
+        phase = (p.sum(axis=1) * np.float32(10.0)) if axis == "DIAGONAL" else \
+            p[:, "XYZ".index(axis) if axis in ("X", "Y", "Z") else 0] * np.float32(20.0)
+    phase = phase + f32(inp.float("Phase Offset", 0.0))
+    distortion = np.broadcast_to(f32(inp.float("Distortion", 0.0)), (geom.n,))
+    if np.any(distortion != 0):
+        q = (p * f32(inp.float("Detail Scale", 1.0)).reshape(-1, 1)).astype(np.float32)
+        turbulence = fbm(q, inp.float("Detail", 2.0), inp.float("Detail Roughness", 0.5), 2.0)
+        phase = phase + distortion * (turbulence * np.float32(2.0) - np.float32(1.0))
+    profile = n.props.get("wave_profile", "SIN")
+    if profile == "SAW":
+        t = phase / np.float32(2.0 * np.pi)
+        fac = t - np.floor(t)
+    elif profile == "TRI":
+        t = phase / np.float32(2.0 * np.pi)
+        fac = np.abs(t - np.floor(t + np.float32(0.5))) * np.float32(2.0)
+    else:
+        fac = np.float32(0.5) + np.float32(0.5) * np.sin(phase - np.float32(np.pi / 2))
+    fac = np.nan_to_num(np.broadcast_to(fac, (geom.n,)).astype(np.float32), nan=0.0)
+    return {"Color": np.repeat(fac[:, None], 3, axis=1), "Fac": fac}
+
+
+# Cycles' Magic Texture: after the first three waves, up to ten more steps,
+# each replacing one coordinate by a sine or cosine of a signed sum of all three.
+_MAGIC_STEPS = ((1, -1, (1, -1, 1), np.cos), (0, 1, (1, -1, -1), np.cos), (2, 1, (-1, -1, -1), np.sin),
+                (0, -1, (-1, 1, -1), np.cos), (1, -1, (-1, 1, 1), np.sin), (1, -1, (-1, 1, 1), np.cos),
+                (0, 1, (1, 1, 1), np.cos), (2, 1, (1, 1, -1), np.sin), (0, -1, (-1, -1, 1), np.cos),
+                (1, -1, (1, -1, 1), np.sin))
+
+
+@varying
+@node("TEX_MAGIC")
+def magic_texture(inp, geom, n, sh):
+    """Cycles' Magic Texture (svm_magic): psychedelic interference of sines
+    and cosines, turbulence_depth steps deep, scaled by Distortion."""
+    p = (_coords(inp, geom) * f32(inp.float("Scale", 5.0)).reshape(-1, 1)).astype(np.float64)
+    p = np.fmod(p, 4.0 * np.pi)     # sines of 5 (x + y + z): unchanged, and finite for huge p
+    d = np.broadcast_to(np.asarray(inp.float("Distortion", 1.0), np.float64), (geom.n,))
+    c = [np.sin((p[:, 0] + p[:, 1] + p[:, 2]) * 5.0), np.cos((-p[:, 0] + p[:, 1] - p[:, 2]) * 5.0),
+         -np.cos((-p[:, 0] - p[:, 1] + p[:, 2]) * 5.0)]
+    depth = int(n.props.get("turbulence_depth", 2))
+    if depth > 0:
+        c = [v * d for v in c]
+        for axis, sign, signs, fn in _MAGIC_STEPS[:min(depth, 10)]:
+            c[axis] = sign * fn(signs[0] * c[0] + signs[1] * c[1] + signs[2] * c[2]) * d
+    scale = np.where(d != 0, 2.0 * d, 1.0)
+    color = np.stack([0.5 - v / scale for v in c], axis=1).astype(np.float32)
+    color = np.nan_to_num(color, nan=0.0, posinf=0.0, neginf=0.0)
+    return {"Color": color, "Fac": color.mean(axis=1).astype(np.float32)}
 
 
 def gradient(kind, p):
