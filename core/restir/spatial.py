@@ -56,8 +56,10 @@ def spatial_resample(ctx, gb, temporal, prev_spatial, prev_owner_p, seeds, k, ra
     # shifted from); one is chosen per pixel at the end (reservoirs.choose).
     candidates = []
     m_own = np.where(valid, own.M, 0.0).astype(np.float32)
-    # p_hat W M of the own reservoir is its w_sum (finalised at this very point).
-    own_w = np.where(own.W > 0, own.w_sum, 0.0).astype(np.float32)
+    # p_hat W M of the own reservoir (finalised at this very point): its
+    # w_sum, over M (biased, W = w_sum / (M p_hat)) or not (unbiased: the
+    # temporal pass weighs by the balance heuristic, W = w_sum / p_hat).
+    own_w = np.where(own.W > 0, own.w_sum * (1.0 if biased else m_own), 0.0).astype(np.float32)
     candidates.append((temporal, pix, own_w, m_own, p, ng, nrm, None))
 
     if prev_spatial is not None:

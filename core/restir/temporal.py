@@ -201,7 +201,8 @@ def reproject(scene, gb, history, motion=False):
 
 def temporal_resample(initial, gb, history, prev_pix, u, M_cap, max_age, biased):
     """This frame's temporal reservoirs: the reprojected history merged with the
-    new samples, finalised with 1/M (biased) or 1/Z (unbiased)."""
+    new samples, finalised with 1/M (biased) or, unbiased, weighted by the
+    balance heuristic between the two (generalized RIS, Lin et al. 2022)."""
     ok = prev_pix >= 0
     if history is None or not ok.any():
         return initial.copy()
@@ -214,28 +215,56 @@ def temporal_resample(initial, gb, history, prev_pix, u, M_cap, max_age, biased)
     p, ng, ns = gb.p, gb.ng, gb.n
     owner = gather(history.owners(), q)
     w_prev = np.where(ok, shift_weight(prev, owner, p, ng, ns, biased), 0.0)
+    m_prev = np.where(ok, prev.M, 0.0).astype(np.float32)
+    if biased:
+        res = _merged(prev, w_prev, m_prev, initial, initial.w_sum, u)
+        return finalize(res, target_at(res, p, ng, ns))
+    # Unbiased: each candidate's weight carries its balance-heuristic share
+    # m(y) = M p_A(y) / sum_i M_i p_A,i(y) (area measure at the sample point:
+    # target_at at each visible point, over the shift's Jacobian), and W =
+    # w_sum / p_hat(y). The history counts for a sample only where last
+    # frame's visible point could have held it (in front of it, the shift
+    # accepted); visibility is left out, as it was with 1/Z: with it the
+    # carried weights compounded into fireflies. Against 1/Z, a new sample
+    # the history cannot hold no longer carries the whole history's weight
+    # (M up to the cap) alone: that made W of a dim sample hundreds of times
+    # its pixel's mean (fireflies held 16 frames by the running means).
+    ng_h, ns_h = gather(history.ng, q), gather(history.n, q)
+    share_prev = _history_share(prev, owner, ng_h, ns_h, p, ng, ns, m_prev, initial.M)
+    share_new = 1.0 - _history_share(initial, owner, ng_h, ns_h, p, ng, ns, m_prev, initial.M)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        w_prev = np.where(m_prev > 0, w_prev * share_prev / np.where(m_prev > 0, m_prev, 1.0), 0.0)
+    res = _merged(prev, w_prev, m_prev, initial, initial.w_sum * share_new, u)
+    return finalize(res, target_at(res, p, ng, ns), np.ones(len(res.M), np.float32))
+
+
+def _merged(prev, w_prev, m_prev, initial, w_new, u):
+    """The history's reservoirs (weights w_prev, counts m_prev) with each
+    row's new sample streamed in (weight w_new)."""
     res = prev
     res.w_sum = w_prev.astype(np.float32)
-    m_prev = np.where(ok, prev.M, 0.0).astype(np.float32)
     res.M = m_prev.copy()
     res.prim2 = np.where(w_prev > 0, res.prim2, -1)
-    merge(res, initial, initial.w_sum, initial.M, u)
+    merge(res, initial, w_new, initial.M, u)
     # A reservoir without a contributing sample holds nothing that can go
     # stale: its age must not run out, or its count of dark candidates (M)
     # would be dropped and the next bright sample over-weighted.
     res.age[res.w_sum <= 0] = 0
-    p_hat = target_at(res, p, ng, ns)
-    if biased:
-        return finalize(res, p_hat)
-    # 1/Z: the history counts only where last frame's visible point could have
-    # held the chosen sample (in front of it, the shift accepted). With the
-    # pixel filter's jitter or a moving camera that point is not this one, and
-    # 1/M would count the history for samples it can never hold: 1 % dark on
-    # the Cornell box with the default filter, 0.5 % with this test. Visibility
-    # is left out: with it Z falls below M where the history is hidden, and the
-    # carried W M compounds that frame after frame into fireflies.
-    supported = target_at(res, owner, gather(history.ng, q), gather(history.n, q)) > 0
+    return res
+
+
+def _history_share(res, owner, ng_h, ns_h, p, ng, ns, m_prev, m_new):
+    """Balance heuristic share of the history (counts m_prev, visible points
+    owner) in each row's sample of res, against the new samples (counts
+    m_new) at this frame's visible points p: M_h p_h / (M_h p_h + M_c p_c J)
+    with p_* the target in solid angle at each point and J the shift's
+    Jacobian from owner to p (zero where the history cannot hold the sample)."""
+    p_h = target_at(res, owner, ng_h, ns_h)
+    p_c = target_at(res, p, ng, ns)
     j = jacobian(owner, p, res.x2, res.ng2)
-    supported &= (j >= J_MIN) & (j <= J_MAX)
-    z = initial.M + np.where(supported, m_prev, 0.0)
-    return finalize(res, p_hat, z.astype(np.float32))
+    p_h = np.where((j >= J_MIN) & (j <= J_MAX), p_h, 0.0)
+    a = m_prev * p_h
+    den = a + m_new * p_c * j
+    with np.errstate(invalid="ignore", divide="ignore"):
+        share = np.where(den > 0, a / np.where(den > 0, den, 1.0), 0.0)
+    return share.astype(np.float32)
