@@ -75,7 +75,20 @@ def _magic(depth, distortion):
     return make
 
 
-PATTERNS = {"brick": _brick, "wave_bands_diagonal_saw": _wave("BANDS", "DIAGONAL", "SAW", 4.0),
+def _noise(dimensions, distortion):
+    def make(tree):
+        n = tree.nodes.new("ShaderNodeTexNoise")
+        n.noise_dimensions = dimensions
+        for name, value in (("Scale", 1.7), ("Detail", 3.3), ("Roughness", 0.6), ("Distortion", distortion)):
+            n.inputs[name].default_value = value
+        if dimensions == "4D":
+            n.inputs["W"].default_value = 1.37
+        return n, n.outputs["Color"]
+    return make
+
+
+PATTERNS = {"brick": _brick, "noise_3d": _noise("3D", 0.0), "noise_4d": _noise("4D", 0.0),
+            "noise_4d_distorted": _noise("4D", 0.8), "wave_bands_diagonal_saw": _wave("BANDS", "DIAGONAL", "SAW", 4.0),
             "wave_bands_y_sine": _wave("BANDS", "Y", "SIN", 0.0),
             "wave_rings_spherical_triangle": _wave("RINGS", "SPHERICAL", "TRI", 2.5),
             "wave_rings_x": _wave("RINGS", "X", "SIN", 1.0),

@@ -1,5 +1,5 @@
-"""Noise Texture (3D, fBM) and Voronoi Texture (3D F1), as Cycles computes
-them, so patterns line up with Cycles' renders of the same file.
+"""Noise Texture (3D and 4D, fBM) and Voronoi Texture (3D F1), as Cycles
+computes them, so patterns line up with Cycles' renders of the same file.
 
 Gradient noise on the integer lattice (Perlin's "improved" gradients chosen
 by Bob Jenkins' lookup3 hash of the cell corner), quintic fade, scaled by
@@ -7,7 +7,8 @@ by Bob Jenkins' lookup3 hash of the cell corner), quintic fade, scaled by
 ``Lacunarity`` frequency steps and ``Roughness`` amplitude steps, the
 fractional last octave blended in, normalised to [0, 1]; ``Distortion``
 offsets the point by three noises first; Color's green and blue are the same
-fBM at two fixed offsets. Voronoi: the nearest of one jittered point per
+fBM at two fixed offsets. 4D noise (the W input, as for animated noise)
+interpolates 16 corners with Cycles' 4D gradients and hash. Voronoi: the nearest of one jittered point per
 cell (the jitter and the cell colour from the PCG hash of the integer cell), over
 the 27 cells around the point. Other dimensions, noise types and Voronoi
 features warn and use these.
@@ -43,6 +44,30 @@ def hash_uint3(x, y, z):
         return _final(init + x.astype(_U32), init + y.astype(_U32), init + z.astype(_U32))
 
 
+def _mix(a, b, c):
+    """lookup3's mix of three uint32 arrays (new arrays)."""
+    a = (a - c) ^ _rot(c, 4)
+    c = c + b
+    b = (b - a) ^ _rot(a, 6)
+    a = a + c
+    c = (c - b) ^ _rot(b, 8)
+    b = b + a
+    a = (a - c) ^ _rot(c, 16)
+    c = c + b
+    b = (b - a) ^ _rot(a, 19)
+    a = a + c
+    c = (c - b) ^ _rot(b, 4)
+    b = b + a
+    return a, b, c
+
+
+def hash_uint4(x, y, z, w):
+    init = _U32(0xDEADBEEF + (4 << 2) + 13)
+    with np.errstate(over="ignore"):
+        a, b, c = _mix(init + x.astype(_U32), init + y.astype(_U32), init + z.astype(_U32))
+        return _final(a + w.astype(_U32), b, c)
+
+
 def hash_uint2(x, y):
     init = _U32(0xDEADBEEF + (2 << 2) + 13)
     with np.errstate(over="ignore"):
@@ -53,11 +78,47 @@ def _float_bits(v):
     return np.asarray(v, np.float32).view(_U32)
 
 
-def random_offset(seed):
-    """Cycles' random_float3_offset: a fixed shift in [100, 200)^3 per seed."""
+def random_offset(seed, dims=3):
+    """Cycles' random_float3_offset (random_float4_offset with dims 4): a
+    fixed shift in [100, 200)^dims per seed."""
     s = _float_bits(np.float32(seed))
-    out = [100.0 + float(hash_uint2(s, _float_bits(np.float32(k)))) / 4294967295.0 * 100.0 for k in range(3)]
+    out = [100.0 + float(hash_uint2(s, _float_bits(np.float32(k)))) / 4294967295.0 * 100.0 for k in range(dims)]
     return np.float32(out)
+
+
+def _grad4(h, x, y, z, w):
+    h = h & _U32(31)
+    u = np.where(h < 24, x, y)
+    v = np.where(h < 16, y, z)
+    s = np.where(h < 8, z, w)
+    return np.where((h & 1) != 0, -u, u) + np.where((h & 2) != 0, -v, v) + np.where((h & 4) != 0, -s, s)
+
+
+def _snoise4(p):
+    """Cycles' 4D Perlin noise (16 lattice corners), scaled into about [-1, 1]."""
+    fl = np.floor(p)
+    i = fl.astype(np.int64).astype(np.int32).view(_U32)
+    f = p - fl
+    fade = [_fade(f[:, k]) for k in range(4)]
+
+    def corner(dx, dy, dz, dw):
+        cell = [i[:, 0] + _U32(dx), i[:, 1] + _U32(dy), i[:, 2] + _U32(dz), i[:, 3] + _U32(dw)]
+        return _grad4(hash_uint4(*cell), f[:, 0] - dx, f[:, 1] - dy, f[:, 2] - dz, f[:, 3] - dw)
+
+    def lerp(t, a, b):
+        return a + t * (b - a)
+
+    def along(axis, offsets):
+        """Interpolate the corners below ``axis`` with the lower axes free."""
+        if axis < 0:
+            return corner(*offsets)
+        lo = along(axis - 1, offsets[:axis] + (0,) + offsets[axis + 1:])
+        hi = along(axis - 1, offsets[:axis] + (1,) + offsets[axis + 1:])
+        return lerp(fade[axis], lo, hi)
+
+    r = along(3, (0, 0, 0, 0))
+    r = np.where(np.isfinite(r), r, 0.0)
+    return (0.8344 * r).astype(np.float32)
 
 
 def _grad(h, x, y, z):
@@ -73,9 +134,10 @@ def _fade(t):
 
 
 def snoise(p):
-    """Signed Perlin noise of points (N, 3), in about [-1, 1]."""
+    """Signed Perlin noise of points (N, 3) or (N, 4), in about [-1, 1]."""
     with np.errstate(over="ignore"):
-        return _snoise(f32(p))
+        p = f32(p)
+        return _snoise4(p) if p.shape[-1] == 4 else _snoise(p)
 
 
 def _snoise(p):
@@ -136,22 +198,28 @@ def fbm(p, detail, roughness, lacunarity, normalize=True):
 @varying
 @node("TEX_NOISE")
 def noise_texture(inp, geom, n, sh):
-    if n.props.get("noise_dimensions", "3D") != "3D" or n.props.get("noise_type", "FBM") != "FBM":
+    dims = 4 if n.props.get("noise_dimensions", "3D") == "4D" else 3
+    if n.props.get("noise_dimensions", "3D") not in ("3D", "4D") or n.props.get("noise_type", "FBM") != "FBM":
         sh.warn_once(("noise", n.props.get("noise_dimensions"), n.props.get("noise_type")),
-                     f"Noise Texture '{n.name}': only 3D fBM noise is evaluated; using it")
+                     f"Noise Texture '{n.name}': only 3D and 4D fBM noise is evaluated; using 3D fBM")
     v = inp.vector("Vector") if inp.linked("Vector") else geom.generated
-    p = np.broadcast_to(f32(v), (geom.n, 3)) * f32(inp.float("Scale", 5.0)).reshape(-1, 1)
+    scale = f32(inp.float("Scale", 5.0)).reshape(-1, 1)
+    p = np.broadcast_to(f32(v), (geom.n, 3)) * scale
+    if dims == 4:       # the W input is the fourth coordinate, scaled alike
+        w = np.broadcast_to(f32(inp.float("W", 0.0)).reshape(-1, 1), (geom.n, 1)) * scale
+        p = np.concatenate([np.broadcast_to(p, (geom.n, 3)), np.broadcast_to(w, (geom.n, 1))], axis=1)
     p = np.ascontiguousarray(p, np.float32)
     distortion = f32(inp.float("Distortion", 0.0)).reshape(-1, 1)
     if np.any(distortion != 0):
-        shift = np.stack([snoise(p + random_offset(k)) for k in range(3)], axis=1)
+        shift = np.stack([snoise(p + random_offset(k, dims)) for k in range(dims)], axis=1)
         p = (p + shift * distortion).astype(np.float32)
     args = (inp.float("Detail", 2.0), inp.float("Roughness", 0.5), inp.float("Lacunarity", 2.0),
             bool(n.props.get("normalize", True)))
     value = fbm(p, *args)
     if (sh.index.get(id(n)), "Color") not in sh.read_outputs:
         return {"Fac": value}       # the colour's two more fBMs only where it is read
-    color = np.stack([value, fbm(p + random_offset(3), *args), fbm(p + random_offset(4), *args)], axis=1)
+    color = np.stack([value, fbm(p + random_offset(dims, dims), *args),
+                      fbm(p + random_offset(dims + 1, dims), *args)], axis=1)
     return {"Fac": value, "Color": color.astype(np.float32)}
 
 
