@@ -75,20 +75,34 @@ def _magic(depth, distortion):
     return make
 
 
-def _noise(dimensions, distortion):
+def _noise(dimensions, distortion, kind="FBM"):
     def make(tree):
         n = tree.nodes.new("ShaderNodeTexNoise")
-        n.noise_dimensions = dimensions
-        for name, value in (("Scale", 1.7), ("Detail", 3.3), ("Roughness", 0.6), ("Distortion", distortion)):
-            n.inputs[name].default_value = value
+        n.noise_dimensions, n.noise_type = dimensions, kind
+        for name, value in (("Scale", 1.7), ("Detail", 3.3), ("Roughness", 0.6), ("Distortion", distortion),
+                            ("Offset", 0.8), ("Gain", 1.4)):
+            if name in n.inputs:
+                n.inputs[name].default_value = value
         if dimensions == "4D":
             n.inputs["W"].default_value = 1.37
-        return n, n.outputs["Color"]
+        if kind == "FBM":
+            return n, n.outputs["Color"]
+        # The other types range beyond [0, 1] (and below 0, which an
+        # emission colour would not show alike): 0.2 x + 0.5 (ridges, which
+        # stay small: 0.8 x + 0.1), clamped.
+        m = tree.nodes.new("ShaderNodeMath")
+        m.operation, m.use_clamp = "MULTIPLY_ADD", True
+        m.inputs[1].default_value, m.inputs[2].default_value = (0.8, 0.1) if kind == "RIDGED_MULTIFRACTAL" \
+            else (0.2, 0.5)
+        tree.links.new(n.outputs["Fac"], m.inputs[0])
+        return n, m.outputs[0]
     return make
 
 
 PATTERNS = {"brick": _brick, "noise_3d": _noise("3D", 0.0), "noise_4d": _noise("4D", 0.0),
-            "noise_4d_distorted": _noise("4D", 0.8), "wave_bands_diagonal_saw": _wave("BANDS", "DIAGONAL", "SAW", 4.0),
+            "noise_4d_distorted": _noise("4D", 0.8),
+            **{f"noise_{k.lower()}": _noise("3D", 0.0, k) for k in ("MULTIFRACTAL", "HETERO_TERRAIN",
+                                                                  "HYBRID_MULTIFRACTAL", "RIDGED_MULTIFRACTAL")}, "wave_bands_diagonal_saw": _wave("BANDS", "DIAGONAL", "SAW", 4.0),
             "wave_bands_y_sine": _wave("BANDS", "Y", "SIN", 0.0),
             "wave_rings_spherical_triangle": _wave("RINGS", "SPHERICAL", "TRI", 2.5),
             "wave_rings_x": _wave("RINGS", "X", "SIN", 1.0),

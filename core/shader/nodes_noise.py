@@ -1,5 +1,6 @@
-"""Noise Texture (3D and 4D, fBM) and Voronoi Texture (3D F1), as Cycles
-computes them, so patterns line up with Cycles' renders of the same file.
+"""Noise Texture (3D and 4D; fBM, multifractal, hetero terrain, hybrid and
+ridged multifractal) and Voronoi Texture (3D F1), as Cycles computes them,
+so patterns line up with Cycles' renders of the same file.
 
 Gradient noise on the integer lattice (Perlin's "improved" gradients chosen
 by Bob Jenkins' lookup3 hash of the cell corner), quintic fade, scaled by
@@ -8,7 +9,8 @@ by Bob Jenkins' lookup3 hash of the cell corner), quintic fade, scaled by
 fractional last octave blended in, normalised to [0, 1]; ``Distortion``
 offsets the point by three noises first; Color's green and blue are the same
 fBM at two fixed offsets. 4D noise (the W input, as for animated noise)
-interpolates 16 corners with Cycles' 4D gradients and hash. Voronoi: the nearest of one jittered point per
+interpolates 16 corners with Cycles' 4D gradients and hash; the other types
+sum or multiply the same octaves as Cycles' fractal_noise.h. Voronoi: the nearest of one jittered point per
 cell (the jitter and the cell colour from the PCG hash of the integer cell), over
 the 27 cells around the point. Other dimensions, noise types and Voronoi
 features warn and use these.
@@ -195,13 +197,83 @@ def fbm(p, detail, roughness, lacunarity, normalize=True):
     return np.where(rmd != 0, a + rmd * (b - a), a).astype(np.float32)
 
 
+def _octaves(detail):
+    """(whole octaves beyond the first, fraction of the next) of Detail."""
+    detail = float(np.clip(np.max(f32(detail)), 0.0, 15.0)) if np.size(detail) else 0.0
+    return int(np.floor(detail)), detail - np.floor(detail)
+
+
+def multifractal(kind, p, detail, roughness, lacunarity, offset, gain):
+    """Cycles' other noise types (noise_multi_fractal, noise_hetero_terrain,
+    noise_hybrid_multi_fractal, noise_ridged_multi_fractal), per point;
+    Detail is taken as one value for the batch (the octave count)."""
+    octaves, rmd = _octaves(detail)
+    rough = f32(roughness)
+    lac = f32(lacunarity)
+    offset, gain = f32(offset), f32(gain)
+    n = len(p)
+    if kind == "MULTIFRACTAL":
+        value, pwr = np.ones(n, np.float32), np.ones(n, np.float32)
+        for _ in range(octaves + 1):
+            value = value * (pwr * snoise(p) + 1.0)
+            pwr = pwr * rough
+            p = p * lac
+        if rmd != 0:
+            value = value * (rmd * pwr * snoise(p) + 1.0)
+        return value.astype(np.float32)
+    if kind == "HETERO_TERRAIN":
+        pwr = np.broadcast_to(rough, (n,)).astype(np.float32)
+        value = offset + snoise(p)
+        p = p * lac
+        for _ in range(octaves):
+            value = value + (snoise(p) + offset) * pwr * value
+            pwr = pwr * rough
+            p = p * lac
+        if rmd != 0:
+            value = value + rmd * (snoise(p) + offset) * pwr * value
+        return np.asarray(value, np.float32)
+    if kind == "HYBRID_MULTIFRACTAL":
+        pwr, value, weight = np.ones(n, np.float32), np.zeros(n, np.float32), np.ones(n, np.float32)
+        for _ in range(octaves + 1):
+            live = weight > 0.001
+            weight = np.minimum(weight, 1.0)
+            signal = (snoise(p) + offset) * pwr
+            pwr = pwr * rough
+            value = np.where(live, value + weight * signal, value)
+            weight = np.where(live, weight * gain * signal, weight)
+            p = p * lac
+        if rmd != 0:
+            live = weight > 0.001
+            signal = (snoise(p) + offset) * pwr
+            value = np.where(live, value + rmd * np.minimum(weight, 1.0) * signal, value)
+        return value.astype(np.float32)
+    # RIDGED_MULTIFRACTAL
+    pwr = np.broadcast_to(rough, (n,)).astype(np.float32)
+    signal = offset - np.abs(snoise(p))
+    signal = signal * signal
+    value = signal
+    for _ in range(octaves):
+        p = p * lac
+        weight = np.clip(signal * gain, 0.0, 1.0)
+        signal = offset - np.abs(snoise(p))
+        signal = signal * signal * weight
+        value = value + signal * pwr
+        pwr = pwr * rough
+    return np.asarray(value, np.float32)
+
+
+NOISE_TYPES = ("FBM", "MULTIFRACTAL", "HETERO_TERRAIN", "HYBRID_MULTIFRACTAL", "RIDGED_MULTIFRACTAL")
+
+
 @varying
 @node("TEX_NOISE")
 def noise_texture(inp, geom, n, sh):
     dims = 4 if n.props.get("noise_dimensions", "3D") == "4D" else 3
-    if n.props.get("noise_dimensions", "3D") not in ("3D", "4D") or n.props.get("noise_type", "FBM") != "FBM":
-        sh.warn_once(("noise", n.props.get("noise_dimensions"), n.props.get("noise_type")),
-                     f"Noise Texture '{n.name}': only 3D and 4D fBM noise is evaluated; using 3D fBM")
+    kind = n.props.get("noise_type", "FBM")
+    if n.props.get("noise_dimensions", "3D") not in ("3D", "4D") or kind not in NOISE_TYPES:
+        sh.warn_once(("noise", n.props.get("noise_dimensions"), kind),
+                     f"Noise Texture '{n.name}': only 3D and 4D noise is evaluated; using 3D fBM")
+        kind = "FBM" if kind not in NOISE_TYPES else kind
     v = inp.vector("Vector") if inp.linked("Vector") else geom.generated
     scale = f32(inp.float("Scale", 5.0)).reshape(-1, 1)
     p = np.broadcast_to(f32(v), (geom.n, 3)) * scale
@@ -213,13 +285,23 @@ def noise_texture(inp, geom, n, sh):
     if np.any(distortion != 0):
         shift = np.stack([snoise(p + random_offset(k, dims)) for k in range(dims)], axis=1)
         p = (p + shift * distortion).astype(np.float32)
-    args = (inp.float("Detail", 2.0), inp.float("Roughness", 0.5), inp.float("Lacunarity", 2.0),
-            bool(n.props.get("normalize", True)))
-    value = fbm(p, *args)
+    if kind == "FBM":
+        args = (inp.float("Detail", 2.0), inp.float("Roughness", 0.5), inp.float("Lacunarity", 2.0),
+                bool(n.props.get("normalize", True)))
+
+        def noise(q):
+            return fbm(q, *args)
+    else:
+        args = (inp.float("Detail", 2.0), inp.float("Roughness", 0.5), inp.float("Lacunarity", 2.0),
+                inp.float("Offset", 0.0), inp.float("Gain", 1.0))
+
+        def noise(q):
+            return multifractal(kind, q, *args)
+    value = noise(p)
     if (sh.index.get(id(n)), "Color") not in sh.read_outputs:
-        return {"Fac": value}       # the colour's two more fBMs only where it is read
-    color = np.stack([value, fbm(p + random_offset(dims, dims), *args),
-                      fbm(p + random_offset(dims + 1, dims), *args)], axis=1)
+        return {"Fac": value}       # the colour's two more noises only where it is read
+    color = np.stack([value, noise(p + random_offset(dims, dims)), noise(p + random_offset(dims + 1, dims))],
+                     axis=1)
     return {"Fac": value, "Color": color.astype(np.float32)}
 
 
