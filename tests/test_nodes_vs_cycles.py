@@ -83,7 +83,7 @@ def _noise(dimensions, distortion, kind="FBM"):
                             ("Offset", 0.8), ("Gain", 1.4)):
             if name in n.inputs:
                 n.inputs[name].default_value = value
-        if dimensions == "4D":
+        if dimensions in ("1D", "4D"):
             n.inputs["W"].default_value = 1.37
         if kind == "FBM":
             return n, n.outputs["Color"]
@@ -100,7 +100,8 @@ def _noise(dimensions, distortion, kind="FBM"):
 
 
 PATTERNS = {"brick": _brick, "noise_3d": _noise("3D", 0.0), "noise_4d": _noise("4D", 0.0),
-            "noise_4d_distorted": _noise("4D", 0.8),
+            "noise_4d_distorted": _noise("4D", 0.8), "noise_2d_distorted": _noise("2D", 0.8),
+            "noise_1d_distorted": _noise("1D", 0.8),
             **{f"noise_{k.lower()}": _noise("3D", 0.0, k) for k in ("MULTIFRACTAL", "HETERO_TERRAIN",
                                                                   "HYBRID_MULTIFRACTAL", "RIDGED_MULTIFRACTAL")}, "wave_bands_diagonal_saw": _wave("BANDS", "DIAGONAL", "SAW", 4.0),
             "wave_bands_y_sine": _wave("BANDS", "Y", "SIN", 0.0),
@@ -126,7 +127,12 @@ def test_texture_pattern_matches_cycles_pixel_by_pixel(addon, pattern):
     out, emit = tree.nodes.new("ShaderNodeOutputMaterial"), tree.nodes.new("ShaderNodeEmission")
     coords = tree.nodes.new("ShaderNodeTexCoord")
     tex, color = PATTERNS[pattern](tree)
-    tree.links.new(coords.outputs["Object"], tex.inputs["Vector"])
+    if "Vector" in tex.inputs:
+        tree.links.new(coords.outputs["Object"], tex.inputs["Vector"])
+    else:       # 1D noise: along x, through W
+        sep = tree.nodes.new("ShaderNodeSeparateXYZ")
+        tree.links.new(coords.outputs["Object"], sep.inputs[0])
+        tree.links.new(sep.outputs["X"], tex.inputs["W"])
     tree.links.new(color, emit.inputs["Color"])
     tree.links.new(emit.outputs[0], out.inputs["Surface"])
     add_mesh("Wall", *rect(-2.2, 2.2, -2.2, 2.2), mat=mat)

@@ -1,4 +1,4 @@
-"""Noise Texture (3D and 4D; fBM, multifractal, hetero terrain, hybrid and
+"""Noise Texture (1D to 4D; fBM, multifractal, hetero terrain, hybrid and
 ridged multifractal) and Voronoi Texture (3D F1), as Cycles computes them,
 so patterns line up with Cycles' renders of the same file.
 
@@ -9,7 +9,8 @@ by Bob Jenkins' lookup3 hash of the cell corner), quintic fade, scaled by
 fractional last octave blended in, normalised to [0, 1]; ``Distortion``
 offsets the point by three noises first; Color's green and blue are the same
 fBM at two fixed offsets. 4D noise (the W input, as for animated noise)
-interpolates 16 corners with Cycles' 4D gradients and hash; the other types
+interpolates 16 corners with Cycles' 4D gradients and hash, 1D and 2D
+noise 2 and 4 with theirs (each dimension has its own scale); the other types
 sum or multiply the same octaves as Cycles' fractal_noise.h. Voronoi: the nearest of one jittered point per
 cell (the jitter and the cell colour from the PCG hash of the integer cell), over
 the 27 cells around the point. Other dimensions, noise types and Voronoi
@@ -70,6 +71,13 @@ def hash_uint4(x, y, z, w):
         return _final(a + w.astype(_U32), b, c)
 
 
+def hash_uint(x):
+    init = _U32(0xDEADBEEF + (1 << 2) + 13)
+    with np.errstate(over="ignore"):
+        full = np.full(np.shape(x), init, _U32)
+        return _final(init + np.asarray(x, _U32), full, full.copy())
+
+
 def hash_uint2(x, y):
     init = _U32(0xDEADBEEF + (2 << 2) + 13)
     with np.errstate(over="ignore"):
@@ -84,8 +92,51 @@ def random_offset(seed, dims=3):
     """Cycles' random_float3_offset (random_float4_offset with dims 4): a
     fixed shift in [100, 200)^dims per seed."""
     s = _float_bits(np.float32(seed))
+    if dims == 1:       # random_float_offset: a hash of the seed alone
+        return np.float32([100.0 + float(hash_uint(s)) / 4294967295.0 * 100.0])
     out = [100.0 + float(hash_uint2(s, _float_bits(np.float32(k)))) / 4294967295.0 * 100.0 for k in range(dims)]
     return np.float32(out)
+
+
+def _snoise1(p):
+    """Cycles' 1D Perlin noise: gradients 1..8 of either sign, scaled into about [-1, 1]."""
+    x = p[:, 0]
+    fl = np.floor(x)
+    i = fl.astype(np.int64).astype(np.int32).view(_U32)
+    f = x - fl
+
+    def grad(h, t):
+        h = h & _U32(15)
+        g = (_U32(1) + (h & _U32(7))).astype(np.float32)
+        return np.where((h & 8) != 0, -g, g) * t
+
+    a, b = grad(hash_uint(i), f), grad(hash_uint(i + _U32(1)), f - 1.0)
+    r = a + _fade(f) * (b - a)
+    return (0.25 * np.where(np.isfinite(r), r, 0.0)).astype(np.float32)
+
+
+def _snoise2(p):
+    """Cycles' 2D Perlin noise (4 corners), scaled into about [-1, 1]."""
+    fl = np.floor(p)
+    i = fl.astype(np.int64).astype(np.int32).view(_U32)
+    f = p - fl
+    fx, fy = f[:, 0], f[:, 1]
+    X, Y = i[:, 0], i[:, 1]
+    one = _U32(1)
+
+    def grad(h, x, y):
+        h = h & _U32(7)
+        u = np.where(h < 4, x, y)
+        v = 2.0 * np.where(h < 4, y, x)
+        return np.where((h & 1) != 0, -u, u) + np.where((h & 2) != 0, -v, v)
+
+    u, v = _fade(fx), _fade(fy)
+    x0 = grad(hash_uint2(X, Y), fx, fy)
+    x0 = x0 + u * (grad(hash_uint2(X + one, Y), fx - 1.0, fy) - x0)
+    x1 = grad(hash_uint2(X, Y + one), fx, fy - 1.0)
+    x1 = x1 + u * (grad(hash_uint2(X + one, Y + one), fx - 1.0, fy - 1.0) - x1)
+    r = x0 + v * (x1 - x0)
+    return (0.6616 * np.where(np.isfinite(r), r, 0.0)).astype(np.float32)
 
 
 def _grad4(h, x, y, z, w):
@@ -136,10 +187,10 @@ def _fade(t):
 
 
 def snoise(p):
-    """Signed Perlin noise of points (N, 3) or (N, 4), in about [-1, 1]."""
+    """Signed Perlin noise of points (N, D), D = 1 to 4, in about [-1, 1]."""
     with np.errstate(over="ignore"):
         p = f32(p)
-        return _snoise4(p) if p.shape[-1] == 4 else _snoise(p)
+        return (_snoise1, _snoise2, _snoise, _snoise4)[p.shape[-1] - 1](p)
 
 
 def _snoise(p):
@@ -268,18 +319,17 @@ NOISE_TYPES = ("FBM", "MULTIFRACTAL", "HETERO_TERRAIN", "HYBRID_MULTIFRACTAL", "
 @varying
 @node("TEX_NOISE")
 def noise_texture(inp, geom, n, sh):
-    dims = 4 if n.props.get("noise_dimensions", "3D") == "4D" else 3
+    dims = {"1D": 1, "2D": 2, "4D": 4}.get(n.props.get("noise_dimensions", "3D"), 3)
     kind = n.props.get("noise_type", "FBM")
-    if n.props.get("noise_dimensions", "3D") not in ("3D", "4D") or kind not in NOISE_TYPES:
-        sh.warn_once(("noise", n.props.get("noise_dimensions"), kind),
-                     f"Noise Texture '{n.name}': only 3D and 4D noise is evaluated; using 3D fBM")
-        kind = "FBM" if kind not in NOISE_TYPES else kind
+    if kind not in NOISE_TYPES:
+        sh.warn_once(("noise", kind), f"Noise Texture '{n.name}': type {kind} is not evaluated; using fBM")
+        kind = "FBM"
     v = inp.vector("Vector") if inp.linked("Vector") else geom.generated
     scale = f32(inp.float("Scale", 5.0)).reshape(-1, 1)
-    p = np.broadcast_to(f32(v), (geom.n, 3)) * scale
-    if dims == 4:       # the W input is the fourth coordinate, scaled alike
-        w = np.broadcast_to(f32(inp.float("W", 0.0)).reshape(-1, 1), (geom.n, 1)) * scale
-        p = np.concatenate([np.broadcast_to(p, (geom.n, 3)), np.broadcast_to(w, (geom.n, 1))], axis=1)
+    xyz = np.broadcast_to(np.broadcast_to(f32(v), (geom.n, 3)) * scale, (geom.n, 3))
+    # The W input is the coordinate of 1D noise and the fourth of 4D noise, scaled alike.
+    w = np.broadcast_to(f32(inp.float("W", 0.0)).reshape(-1, 1) * scale, (geom.n, 1)) if dims in (1, 4) else None
+    p = {1: w, 2: xyz[:, :2], 3: xyz, 4: None}[dims] if dims != 4 else np.concatenate([xyz, w], axis=1)
     p = np.ascontiguousarray(p, np.float32)
     distortion = f32(inp.float("Distortion", 0.0)).reshape(-1, 1)
     if np.any(distortion != 0):
