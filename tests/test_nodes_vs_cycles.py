@@ -99,9 +99,32 @@ def _noise(dimensions, distortion, kind="FBM"):
     return make
 
 
+def _voronoi(feature, metric, output):
+    def make(tree):
+        v = tree.nodes.new("ShaderNodeTexVoronoi")
+        v.feature, v.distance = feature, metric
+        for name, value in (("Scale", 2.3), ("Randomness", 0.85), ("Exponent", 1.6), ("Smoothness", 0.7)):
+            if name in v.inputs:
+                v.inputs[name].default_value = value
+        if output != "Position":
+            return v, v.outputs[output]
+        m = tree.nodes.new("ShaderNodeVectorMath")     # positions leave [0, 1]: 0.2 p + 0.5
+        m.operation = "MULTIPLY_ADD"
+        m.inputs[1].default_value, m.inputs[2].default_value = (0.2, 0.2, 0.2), (0.5, 0.5, 0.5)
+        tree.links.new(v.outputs["Position"], m.inputs[0])
+        return v, m.outputs[0]
+    return make
+
+
 PATTERNS = {"brick": _brick, "noise_3d": _noise("3D", 0.0), "noise_4d": _noise("4D", 0.0),
             "noise_4d_distorted": _noise("4D", 0.8), "noise_2d_distorted": _noise("2D", 0.8),
             "noise_1d_distorted": _noise("1D", 0.8),
+            "voronoi_f1_manhattan": _voronoi("F1", "MANHATTAN", "Color"),
+            "voronoi_f2_euclidean": _voronoi("F2", "EUCLIDEAN", "Color"),
+            "voronoi_f2_chebychev_distance": _voronoi("F2", "CHEBYCHEV", "Distance"),
+            "voronoi_smooth_f1_minkowski": _voronoi("SMOOTH_F1", "MINKOWSKI", "Color"),
+            "voronoi_smooth_f1_distance": _voronoi("SMOOTH_F1", "EUCLIDEAN", "Distance"),
+            "voronoi_f1_position": _voronoi("F1", "EUCLIDEAN", "Position"),
             **{f"noise_{k.lower()}": _noise("3D", 0.0, k) for k in ("MULTIFRACTAL", "HETERO_TERRAIN",
                                                                   "HYBRID_MULTIFRACTAL", "RIDGED_MULTIFRACTAL")}, "wave_bands_diagonal_saw": _wave("BANDS", "DIAGONAL", "SAW", 4.0),
             "wave_bands_y_sine": _wave("BANDS", "Y", "SIN", 0.0),

@@ -353,7 +353,7 @@ def test15_voronoi_cells(rng):
     """F1 distance is the distance to the nearest jittered cell point (checked
     against a brute-force search over 5x5x5 cells); randomness 0 puts the
     points on the lattice."""
-    from core.shader.nodes_noise import cell_random, voronoi_f1
+    from core.shader.nodes_voronoi import cell_random, voronoi_f1
     p = rng.uniform(-5, 5, (500, 3)).astype(np.float32)
     dist, colour, pos = voronoi_f1(p, 1.0)
     base = np.floor(p).astype(np.int32)

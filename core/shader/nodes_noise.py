@@ -1,6 +1,6 @@
 """Noise Texture (1D to 4D; fBM, multifractal, hetero terrain, hybrid and
-ridged multifractal) and Voronoi Texture (3D F1), as Cycles computes them,
-so patterns line up with Cycles' renders of the same file.
+ridged multifractal) as Cycles computes it, so patterns line up with
+Cycles' renders of the same file (Voronoi: nodes_voronoi.py).
 
 Gradient noise on the integer lattice (Perlin's "improved" gradients chosen
 by Bob Jenkins' lookup3 hash of the cell corner), quintic fade, scaled by
@@ -9,12 +9,9 @@ by Bob Jenkins' lookup3 hash of the cell corner), quintic fade, scaled by
 fractional last octave blended in, normalised to [0, 1]; ``Distortion``
 offsets the point by three noises first; Color's green and blue are the same
 fBM at two fixed offsets. 4D noise (the W input, as for animated noise)
-interpolates 16 corners with Cycles' 4D gradients and hash, 1D and 2D
-noise 2 and 4 with theirs (each dimension has its own scale); the other types
-sum or multiply the same octaves as Cycles' fractal_noise.h. Voronoi: the nearest of one jittered point per
-cell (the jitter and the cell colour from the PCG hash of the integer cell), over
-the 27 cells around the point. Other dimensions, noise types and Voronoi
-features warn and use these.
+interpolates 16 corners with Cycles' 4D gradients and hash, 1D and 2D noise
+2 and 4 with theirs (each dimension has its own scale); the other types sum
+or multiply the same octaves as Cycles' fractal noise.
 All on uint32 and float32 arrays, the whole batch at once.
 """
 
@@ -353,65 +350,3 @@ def noise_texture(inp, geom, n, sh):
     color = np.stack([value, noise(p + random_offset(dims, dims)), noise(p + random_offset(dims + 1, dims))],
                      axis=1)
     return {"Fac": value, "Color": color.astype(np.float32)}
-
-
-# --- Voronoi --------------------------------------------------------------------
-
-def cell_random(cells):
-    """Cycles' hash_int3_to_float3 of integer cells (N, 3): the PCG 3D hash
-    ("Hash Functions for GPU Rendering", JCGT 2020) on signed 32-bit
-    integers, as (N, 3) in [0, 1]."""
-    v = np.ascontiguousarray(cells, np.int32).copy()
-    with np.errstate(over="ignore"):
-        v = v * np.int32(1664525) + np.int32(1013904223)
-        for _ in range(2):
-            v[:, 0] += v[:, 1] * v[:, 2]
-            v[:, 1] += v[:, 2] * v[:, 0]
-            v[:, 2] += v[:, 0] * v[:, 1]
-            if _ == 0:
-                v ^= v >> np.int32(16)
-    return ((v & np.int32(0x7FFFFFFF)).astype(np.float32) * np.float32(1.0 / 0x7FFFFFFF)).astype(np.float32)
-
-
-def voronoi_f1(coord, randomness):
-    """(distance (N,), colour (N, 3), position (N, 3)) of Cycles' 3D F1 Voronoi
-    with Euclidean distance: the nearest of the jittered points of the 27
-    cells around each point."""
-    floor = np.floor(coord)
-    local = coord - floor
-    cell = floor.astype(np.int64).astype(np.int32)
-    best = np.full(len(coord), np.inf, np.float32)
-    best_offset = np.zeros_like(coord)
-    best_point = np.zeros_like(coord)
-    r = f32(randomness).reshape(-1, 1)
-    for k in (-1, 0, 1):
-        for j in (-1, 0, 1):
-            for i in (-1, 0, 1):
-                offset = np.float32([i, j, k])
-                point = offset + cell_random(cell + np.int32([i, j, k])) * r
-                d = np.sqrt(((point - local) ** 2).sum(axis=1))
-                closer = d < best
-                best = np.where(closer, d, best)
-                best_offset = np.where(closer[:, None], offset, best_offset)
-                best_point = np.where(closer[:, None], point, best_point)
-    colour = cell_random(cell + best_offset.astype(np.int32))
-    return best.astype(np.float32), colour, (best_point + floor).astype(np.float32)
-
-
-@varying
-@node("TEX_VORONOI")
-def voronoi_texture(inp, geom, n, sh):
-    props = n.props
-    if (props.get("voronoi_dimensions", "3D") != "3D" or props.get("feature", "F1") != "F1"
-            or props.get("distance", "EUCLIDEAN") != "EUCLIDEAN"
-            or np.any(f32(inp.float("Detail", 0.0)) > 0) or props.get("normalize", False)):
-        sh.warn_once(("voronoi", props.get("feature")),
-                     f"Voronoi Texture '{n.name}': only 3D F1 Euclidean without detail is evaluated; "
-                     f"using it")
-    v = inp.vector("Vector") if inp.linked("Vector") else geom.generated
-    p = np.ascontiguousarray(np.broadcast_to(f32(v), (geom.n, 3)) * f32(inp.float("Scale", 5.0)).reshape(-1, 1),
-                             np.float32)
-    scale = np.maximum(f32(inp.float("Scale", 5.0)), 1e-8)
-    dist, colour, position = voronoi_f1(p, np.clip(inp.float("Randomness", 1.0), 0, 1))
-    return {"Distance": dist, "Color": colour, "Position": (position / scale.reshape(-1, 1)).astype(np.float32),
-            "W": np.zeros(geom.n, np.float32), "Radius": np.zeros(geom.n, np.float32)}

@@ -1,0 +1,137 @@
+"""Voronoi Texture (3D F1, F2 and Smooth F1; Euclidean, Manhattan,
+Chebychev and Minkowski distances) as Cycles computes it, so cells line up
+with Cycles' renders of the same file.
+
+The nearest (F2: second nearest) of one jittered point per cell (the jitter
+and the cell colour from the PCG hash of the integer cell) over the 27 cells
+around the point; Smooth F1 blends the 125 around it by a smooth minimum.
+Other features (Distance to Edge, N-Sphere Radius), dimensions and detail
+warn and use 3D F1. All on float32 arrays, the whole batch at once.
+"""
+
+import numpy as np
+
+from .evaluate import f32, node, varying
+
+
+def cell_random(cells):
+    """Cycles' hash_int3_to_float3 of integer cells (N, 3): the PCG 3D hash
+    ("Hash Functions for GPU Rendering", JCGT 2020) on signed 32-bit
+    integers, as (N, 3) in [0, 1]."""
+    v = np.ascontiguousarray(cells, np.int32).copy()
+    with np.errstate(over="ignore"):
+        v = v * np.int32(1664525) + np.int32(1013904223)
+        for _ in range(2):
+            v[:, 0] += v[:, 1] * v[:, 2]
+            v[:, 1] += v[:, 2] * v[:, 0]
+            v[:, 2] += v[:, 0] * v[:, 1]
+            if _ == 0:
+                v ^= v >> np.int32(16)
+    return ((v & np.int32(0x7FFFFFFF)).astype(np.float32) * np.float32(1.0 / 0x7FFFFFFF)).astype(np.float32)
+
+
+def voronoi_distance(a, b, metric="EUCLIDEAN", exponent=1.0):
+    """Cycles' voronoi_distance between point rows a and b (N, 3)."""
+    d = np.abs(a - b)
+    if metric == "MANHATTAN":
+        return d.sum(axis=1)
+    if metric == "CHEBYCHEV":
+        return d.max(axis=1)
+    if metric == "MINKOWSKI":
+        e = f32(exponent).reshape(-1)
+        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+            r = (d ** e[:, None]).sum(axis=1) ** (1.0 / e)
+        return np.nan_to_num(r, nan=0.0, posinf=0.0).astype(np.float32)
+    return np.sqrt((d * d).sum(axis=1))
+
+
+def voronoi_f1(coord, randomness, metric="EUCLIDEAN", exponent=1.0, second=False):
+    """(distance (N,), colour (N, 3), position (N, 3)) of Cycles' 3D Voronoi
+    F1 (or F2 with ``second``): the nearest (second nearest) of the jittered
+    points of the 27 cells around each point, by ``metric``."""
+    floor = np.floor(coord)
+    local = coord - floor
+    cell = floor.astype(np.int64).astype(np.int32)
+    n = len(coord)
+    best, best2 = np.full(n, np.inf, np.float32), np.full(n, np.inf, np.float32)
+    offset1, offset2 = np.zeros_like(coord), np.zeros_like(coord)
+    point1, point2 = np.zeros_like(coord), np.zeros_like(coord)
+    r = f32(randomness).reshape(-1, 1)
+    for k in (-1, 0, 1):
+        for j in (-1, 0, 1):
+            for i in (-1, 0, 1):
+                offset = np.float32([i, j, k])
+                point = offset + cell_random(cell + np.int32([i, j, k])) * r
+                d = voronoi_distance(point, local, metric, exponent)
+                closer = d < best
+                if second:      # the old nearest becomes the second, or d does
+                    nearer2 = ~closer & (d < best2)
+                    best2 = np.where(closer, best, np.where(nearer2, d, best2))
+                    offset2 = np.where(closer[:, None], offset1, np.where(nearer2[:, None], offset, offset2))
+                    point2 = np.where(closer[:, None], point1, np.where(nearer2[:, None], point, point2))
+                best = np.where(closer, d, best)
+                offset1 = np.where(closer[:, None], offset, offset1)
+                point1 = np.where(closer[:, None], point, point1)
+    if second:
+        best, offset1, point1 = best2, offset2, point2
+    colour = cell_random(cell + offset1.astype(np.int32))
+    return best.astype(np.float32), colour, (point1 + floor).astype(np.float32)
+
+
+def voronoi_smooth_f1(coord, randomness, smoothness, metric="EUCLIDEAN", exponent=1.0):
+    """Cycles' 3D Smooth F1: the 125 cells around each point blended by a
+    smooth minimum of width ``smoothness`` (already halved and clamped)."""
+    floor = np.floor(coord)
+    local = coord - floor
+    cell = floor.astype(np.int64).astype(np.int32)
+    n = len(coord)
+    sm = np.broadcast_to(f32(smoothness), (n,)).astype(np.float32)
+    dist = np.full(n, 8.0, np.float32)
+    colour, position = np.zeros((n, 3), np.float32), np.zeros((n, 3), np.float32)
+    r = f32(randomness).reshape(-1, 1)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        for k in range(-2, 3):
+            for j in range(-2, 3):
+                for i in range(-2, 3):
+                    offset = np.float32([i, j, k])
+                    rnd = cell_random(cell + np.int32([i, j, k]))
+                    point = offset + rnd * r
+                    d = voronoi_distance(point, local, metric, exponent)
+                    t = np.clip(0.5 + 0.5 * (dist - d) / sm, 0.0, 1.0)
+                    h = np.where(sm > 0, t * t * (3.0 - 2.0 * t), (d < dist).astype(np.float32))
+                    correction = sm * h * (1.0 - h)
+                    dist = dist + h * (d - dist) - correction
+                    correction = (correction / (1.0 + 3.0 * sm))[:, None]
+                    hh = h[:, None]
+                    colour = colour + hh * (rnd - colour) - correction
+                    position = position + hh * (point - position) - correction
+    return dist.astype(np.float32), colour.astype(np.float32), (position + floor).astype(np.float32)
+
+
+VORONOI_FEATURES = ("F1", "F2", "SMOOTH_F1")
+
+
+@varying
+@node("TEX_VORONOI")
+def voronoi_texture(inp, geom, n, sh):
+    props = n.props
+    feature, metric = props.get("feature", "F1"), props.get("distance", "EUCLIDEAN")
+    if (props.get("voronoi_dimensions", "3D") != "3D" or feature not in VORONOI_FEATURES
+            or np.any(f32(inp.float("Detail", 0.0)) > 0) or props.get("normalize", False)):
+        sh.warn_once(("voronoi", props.get("voronoi_dimensions"), feature),
+                     f"Voronoi Texture '{n.name}': only 3D F1, F2 and Smooth F1 without detail are "
+                     f"evaluated; using 3D F1")
+        feature = feature if feature in VORONOI_FEATURES else "F1"
+    v = inp.vector("Vector") if inp.linked("Vector") else geom.generated
+    p = np.ascontiguousarray(np.broadcast_to(f32(v), (geom.n, 3)) * f32(inp.float("Scale", 5.0)).reshape(-1, 1),
+                             np.float32)
+    scale = np.maximum(f32(inp.float("Scale", 5.0)), 1e-8)
+    randomness = np.clip(inp.float("Randomness", 1.0), 0, 1)
+    exponent = inp.float("Exponent", 0.5)
+    if feature == "SMOOTH_F1":
+        smoothness = np.clip(f32(inp.float("Smoothness", 1.0)) / 2.0, 0.0, 0.5)
+        dist, colour, position = voronoi_smooth_f1(p, randomness, smoothness, metric, exponent)
+    else:
+        dist, colour, position = voronoi_f1(p, randomness, metric, exponent, second=feature == "F2")
+    return {"Distance": dist, "Color": colour, "Position": (position / scale.reshape(-1, 1)).astype(np.float32),
+            "W": np.zeros(geom.n, np.float32), "Radius": np.zeros(geom.n, np.float32)}
