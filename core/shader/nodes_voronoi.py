@@ -1,12 +1,13 @@
-"""Voronoi Texture (3D F1, F2 and Smooth F1; Euclidean, Manhattan,
-Chebychev and Minkowski distances) as Cycles computes it, so cells line up
-with Cycles' renders of the same file.
+"""Voronoi Texture (3D F1, F2, Smooth F1 and Distance to Edge; Euclidean,
+Manhattan, Chebychev and Minkowski distances) as Cycles computes it, so
+cells line up with Cycles' renders of the same file.
 
 The nearest (F2: second nearest) of one jittered point per cell (the jitter
 and the cell colour from the PCG hash of the integer cell) over the 27 cells
 around the point; Smooth F1 blends the 125 around it by a smooth minimum.
-Other features (Distance to Edge, N-Sphere Radius), dimensions and detail
-warn and use 3D F1. All on float32 arrays, the whole batch at once.
+Distance to Edge measures to the nearest plane halfway between the nearest
+point and another. N-Sphere Radius, other dimensions and detail warn and
+use 3D F1. All on float32 arrays, the whole batch at once.
 """
 
 import numpy as np
@@ -108,7 +109,35 @@ def voronoi_smooth_f1(coord, randomness, smoothness, metric="EUCLIDEAN", exponen
     return dist.astype(np.float32), colour.astype(np.float32), (position + floor).astype(np.float32)
 
 
-VORONOI_FEATURES = ("F1", "F2", "SMOOTH_F1")
+def voronoi_distance_to_edge(coord, randomness):
+    """(N,) Cycles' 3D Distance to Edge: from the point to the nearest edge
+    of its cell, the plane halfway between the nearest cell point and each
+    of the others around (Euclidean, as Cycles always measures it)."""
+    floor = np.floor(coord)
+    local = coord - floor
+    cell = floor.astype(np.int64).astype(np.int32)
+    r = f32(randomness).reshape(-1, 1)
+    offsets = [np.float32([i, j, k]) for k in (-1, 0, 1) for j in (-1, 0, 1) for i in (-1, 0, 1)]
+    to_points = [o + cell_random(cell + o.astype(np.int32)) * r - local for o in offsets]
+    best = np.full(len(coord), 8.0, np.float32)
+    closest = np.zeros_like(coord)
+    for v in to_points:
+        d = (v * v).sum(axis=1)
+        closer = d < best
+        best = np.where(closer, d, best)
+        closest = np.where(closer[:, None], v, closest)
+    edge = np.full(len(coord), 8.0, np.float32)
+    for v in to_points:
+        perp = v - closest
+        length2 = (perp * perp).sum(axis=1)
+        far = length2 > 0.0001
+        with np.errstate(divide="ignore", invalid="ignore"):
+            d = (((closest + v) * 0.5) * perp).sum(axis=1) / np.sqrt(length2)
+        edge = np.where(far, np.minimum(edge, d), edge)
+    return edge.astype(np.float32)
+
+
+VORONOI_FEATURES = ("F1", "F2", "SMOOTH_F1", "DISTANCE_TO_EDGE")
 
 
 @varying
@@ -119,8 +148,8 @@ def voronoi_texture(inp, geom, n, sh):
     if (props.get("voronoi_dimensions", "3D") != "3D" or feature not in VORONOI_FEATURES
             or np.any(f32(inp.float("Detail", 0.0)) > 0) or props.get("normalize", False)):
         sh.warn_once(("voronoi", props.get("voronoi_dimensions"), feature),
-                     f"Voronoi Texture '{n.name}': only 3D F1, F2 and Smooth F1 without detail are "
-                     f"evaluated; using 3D F1")
+                     f"Voronoi Texture '{n.name}': only 3D F1, F2, Smooth F1 and Distance to Edge without "
+                     f"detail are evaluated; using 3D F1")
         feature = feature if feature in VORONOI_FEATURES else "F1"
     v = inp.vector("Vector") if inp.linked("Vector") else geom.generated
     p = np.ascontiguousarray(np.broadcast_to(f32(v), (geom.n, 3)) * f32(inp.float("Scale", 5.0)).reshape(-1, 1),
@@ -128,6 +157,11 @@ def voronoi_texture(inp, geom, n, sh):
     scale = np.maximum(f32(inp.float("Scale", 5.0)), 1e-8)
     randomness = np.clip(inp.float("Randomness", 1.0), 0, 1)
     exponent = inp.float("Exponent", 0.5)
+    if feature == "DISTANCE_TO_EDGE":
+        dist = voronoi_distance_to_edge(p, randomness)
+        zero3 = np.zeros((geom.n, 3), np.float32)
+        return {"Distance": dist, "Color": zero3, "Position": zero3, "W": np.zeros(geom.n, np.float32),
+                "Radius": np.zeros(geom.n, np.float32)}
     if feature == "SMOOTH_F1":
         smoothness = np.clip(f32(inp.float("Smoothness", 1.0)) / 2.0, 0.0, 0.5)
         dist, colour, position = voronoi_smooth_f1(p, randomness, smoothness, metric, exponent)
