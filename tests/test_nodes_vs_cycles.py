@@ -126,6 +126,7 @@ PATTERNS = {"brick": _brick, "noise_3d": _noise("3D", 0.0), "noise_4d": _noise("
             "voronoi_smooth_f1_distance": _voronoi("SMOOTH_F1", "EUCLIDEAN", "Distance"),
             "voronoi_f1_position": _voronoi("F1", "EUCLIDEAN", "Position"),
             "voronoi_distance_to_edge": _voronoi("DISTANCE_TO_EDGE", "EUCLIDEAN", "Distance"),
+            "voronoi_n_sphere_radius": _voronoi("N_SPHERE_RADIUS", "EUCLIDEAN", "Radius"),
             **{f"noise_{k.lower()}": _noise("3D", 0.0, k) for k in ("MULTIFRACTAL", "HETERO_TERRAIN",
                                                                   "HYBRID_MULTIFRACTAL", "RIDGED_MULTIFRACTAL")}, "wave_bands_diagonal_saw": _wave("BANDS", "DIAGONAL", "SAW", 4.0),
             "wave_bands_y_sine": _wave("BANDS", "Y", "SIN", 0.0),

@@ -1,13 +1,13 @@
-"""Voronoi Texture (3D F1, F2, Smooth F1 and Distance to Edge; Euclidean,
-Manhattan, Chebychev and Minkowski distances) as Cycles computes it, so
-cells line up with Cycles' renders of the same file.
+"""Voronoi Texture (3D: F1, F2 and Smooth F1 by Euclidean, Manhattan,
+Chebychev and Minkowski distances; Distance to Edge; N-Sphere Radius) as
+Cycles computes it, so cells line up with Cycles' renders of the same file.
 
 The nearest (F2: second nearest) of one jittered point per cell (the jitter
 and the cell colour from the PCG hash of the integer cell) over the 27 cells
 around the point; Smooth F1 blends the 125 around it by a smooth minimum.
 Distance to Edge measures to the nearest plane halfway between the nearest
-point and another. N-Sphere Radius, other dimensions and detail warn and
-use 3D F1. All on float32 arrays, the whole batch at once.
+point and another; N-Sphere Radius is half the distance from the nearest
+point to its own nearest. Other dimensions and detail warn and use 3D. All on float32 arrays, the whole batch at once.
 """
 
 import numpy as np
@@ -137,7 +137,41 @@ def voronoi_distance_to_edge(coord, randomness):
     return edge.astype(np.float32)
 
 
-VORONOI_FEATURES = ("F1", "F2", "SMOOTH_F1", "DISTANCE_TO_EDGE")
+def voronoi_n_sphere_radius(coord, randomness):
+    """(N,) Cycles' 3D N-Sphere Radius: half the distance from the nearest
+    cell point to the point nearest to it (of the 26 cells around its own)."""
+    floor = np.floor(coord)
+    local = coord - floor
+    cell = floor.astype(np.int64).astype(np.int32)
+    r = f32(randomness).reshape(-1, 1)
+    n = len(coord)
+    best, closest, closest_cell = np.full(n, 8.0, np.float32), np.zeros_like(coord), np.zeros((n, 3), np.int32)
+    for k in (-1, 0, 1):
+        for j in (-1, 0, 1):
+            for i in (-1, 0, 1):
+                o = np.int32([i, j, k])
+                point = o.astype(np.float32) + cell_random(cell + o) * r
+                d = np.sqrt(((point - local) ** 2).sum(axis=1))
+                closer = d < best
+                best = np.where(closer, d, best)
+                closest = np.where(closer[:, None], point, closest)
+                closest_cell = np.where(closer[:, None], o, closest_cell)
+    best, neighbour = np.full(n, 8.0, np.float32), np.zeros_like(coord)
+    for k in (-1, 0, 1):
+        for j in (-1, 0, 1):
+            for i in (-1, 0, 1):
+                if i == 0 and j == 0 and k == 0:
+                    continue
+                o = closest_cell + np.int32([i, j, k])
+                point = o.astype(np.float32) + cell_random(cell + o) * r
+                d = np.sqrt(((point - closest) ** 2).sum(axis=1))
+                closer = d < best
+                best = np.where(closer, d, best)
+                neighbour = np.where(closer[:, None], point, neighbour)
+    return (np.sqrt(((neighbour - closest) ** 2).sum(axis=1)) * 0.5).astype(np.float32)
+
+
+VORONOI_FEATURES = ("F1", "F2", "SMOOTH_F1", "DISTANCE_TO_EDGE", "N_SPHERE_RADIUS")
 
 
 @varying
@@ -148,8 +182,7 @@ def voronoi_texture(inp, geom, n, sh):
     if (props.get("voronoi_dimensions", "3D") != "3D" or feature not in VORONOI_FEATURES
             or np.any(f32(inp.float("Detail", 0.0)) > 0) or props.get("normalize", False)):
         sh.warn_once(("voronoi", props.get("voronoi_dimensions"), feature),
-                     f"Voronoi Texture '{n.name}': only 3D F1, F2, Smooth F1 and Distance to Edge without "
-                     f"detail are evaluated; using 3D F1")
+                     f"Voronoi Texture '{n.name}': only 3D without detail is evaluated; using it")
         feature = feature if feature in VORONOI_FEATURES else "F1"
     v = inp.vector("Vector") if inp.linked("Vector") else geom.generated
     p = np.ascontiguousarray(np.broadcast_to(f32(v), (geom.n, 3)) * f32(inp.float("Scale", 5.0)).reshape(-1, 1),
@@ -157,11 +190,13 @@ def voronoi_texture(inp, geom, n, sh):
     scale = np.maximum(f32(inp.float("Scale", 5.0)), 1e-8)
     randomness = np.clip(inp.float("Randomness", 1.0), 0, 1)
     exponent = inp.float("Exponent", 0.5)
-    if feature == "DISTANCE_TO_EDGE":
-        dist = voronoi_distance_to_edge(p, randomness)
-        zero3 = np.zeros((geom.n, 3), np.float32)
-        return {"Distance": dist, "Color": zero3, "Position": zero3, "W": np.zeros(geom.n, np.float32),
-                "Radius": np.zeros(geom.n, np.float32)}
+    if feature in ("DISTANCE_TO_EDGE", "N_SPHERE_RADIUS"):
+        zero, zero3 = np.zeros(geom.n, np.float32), np.zeros((geom.n, 3), np.float32)
+        if feature == "N_SPHERE_RADIUS":
+            return {"Radius": voronoi_n_sphere_radius(p, randomness), "Distance": zero, "Color": zero3,
+                    "Position": zero3, "W": zero}
+        return {"Distance": voronoi_distance_to_edge(p, randomness), "Color": zero3, "Position": zero3,
+                "W": zero, "Radius": zero}
     if feature == "SMOOTH_F1":
         smoothness = np.clip(f32(inp.float("Smoothness", 1.0)) / 2.0, 0.0, 0.5)
         dist, colour, position = voronoi_smooth_f1(p, randomness, smoothness, metric, exponent)
