@@ -99,10 +99,10 @@ def _noise(dimensions, distortion, kind="FBM"):
     return make
 
 
-def _voronoi(feature, metric, output):
+def _voronoi(feature, metric, output, dimensions="3D"):
     def make(tree):
         v = tree.nodes.new("ShaderNodeTexVoronoi")
-        v.feature, v.distance = feature, metric
+        v.feature, v.distance, v.voronoi_dimensions = feature, metric, dimensions
         for name, value in (("Scale", 2.3), ("Randomness", 0.85), ("Exponent", 1.6), ("Smoothness", 0.7)):
             if name in v.inputs:
                 v.inputs[name].default_value = value
@@ -127,6 +127,11 @@ PATTERNS = {"brick": _brick, "noise_3d": _noise("3D", 0.0), "noise_4d": _noise("
             "voronoi_f1_position": _voronoi("F1", "EUCLIDEAN", "Position"),
             "voronoi_distance_to_edge": _voronoi("DISTANCE_TO_EDGE", "EUCLIDEAN", "Distance"),
             "voronoi_n_sphere_radius": _voronoi("N_SPHERE_RADIUS", "EUCLIDEAN", "Radius"),
+            "voronoi_2d_f1": _voronoi("F1", "EUCLIDEAN", "Color", "2D"),
+            "voronoi_2d_f2_position": _voronoi("F2", "MANHATTAN", "Position", "2D"),
+            "voronoi_2d_smooth_f1": _voronoi("SMOOTH_F1", "EUCLIDEAN", "Color", "2D"),
+            "voronoi_2d_distance_to_edge": _voronoi("DISTANCE_TO_EDGE", "EUCLIDEAN", "Distance", "2D"),
+            "voronoi_2d_n_sphere_radius": _voronoi("N_SPHERE_RADIUS", "EUCLIDEAN", "Radius", "2D"),
             **{f"noise_{k.lower()}": _noise("3D", 0.0, k) for k in ("MULTIFRACTAL", "HETERO_TERRAIN",
                                                                   "HYBRID_MULTIFRACTAL", "RIDGED_MULTIFRACTAL")}, "wave_bands_diagonal_saw": _wave("BANDS", "DIAGONAL", "SAW", 4.0),
             "wave_bands_y_sine": _wave("BANDS", "Y", "SIN", 0.0),

@@ -1,18 +1,27 @@
-"""Voronoi Texture (3D: F1, F2 and Smooth F1 by Euclidean, Manhattan,
+"""Voronoi Texture (2D and 3D: F1, F2 and Smooth F1 by Euclidean, Manhattan,
 Chebychev and Minkowski distances; Distance to Edge; N-Sphere Radius) as
 Cycles computes it, so cells line up with Cycles' renders of the same file.
 
 The nearest (F2: second nearest) of one jittered point per cell (the jitter
-and the cell colour from the PCG hash of the integer cell) over the 27 cells
-around the point; Smooth F1 blends the 125 around it by a smooth minimum.
-Distance to Edge measures to the nearest plane halfway between the nearest
-point and another; N-Sphere Radius is half the distance from the nearest
-point to its own nearest. Other dimensions and detail warn and use 3D. All on float32 arrays, the whole batch at once.
+and the cell colour from the PCG hashes of the integer cell) over the 3^D
+cells around the point; Smooth F1 blends the 5^D around it by a smooth
+minimum. Distance to Edge measures to the nearest plane halfway between the
+nearest point and another; N-Sphere Radius is half the distance from the
+nearest point to its own nearest. 1D and 4D and detail warn and use 3D. All
+on float32 arrays, the whole batch at once.
 """
+
+from itertools import product
 
 import numpy as np
 
 from .evaluate import f32, node, varying
+
+_PCG_MUL, _PCG_ADD = np.int32(1664525), np.int32(1013904223)
+
+
+def _to_unit(v):
+    return ((v & np.int32(0x7FFFFFFF)).astype(np.float32) * np.float32(1.0 / 0x7FFFFFFF)).astype(np.float32)
 
 
 def cell_random(cells):
@@ -21,18 +30,47 @@ def cell_random(cells):
     integers, as (N, 3) in [0, 1]."""
     v = np.ascontiguousarray(cells, np.int32).copy()
     with np.errstate(over="ignore"):
-        v = v * np.int32(1664525) + np.int32(1013904223)
+        v = v * _PCG_MUL + _PCG_ADD
         for _ in range(2):
             v[:, 0] += v[:, 1] * v[:, 2]
             v[:, 1] += v[:, 2] * v[:, 0]
             v[:, 2] += v[:, 0] * v[:, 1]
             if _ == 0:
                 v ^= v >> np.int32(16)
-    return ((v & np.int32(0x7FFFFFFF)).astype(np.float32) * np.float32(1.0 / 0x7FFFFFFF)).astype(np.float32)
+    return _to_unit(v)
+
+
+def cell_random2(cells):
+    """Cycles' hash_int2_to_float2 of integer cells (N, 2): the PCG 2D hash."""
+    v = np.ascontiguousarray(cells, np.int32).copy()
+    with np.errstate(over="ignore"):
+        v = v * _PCG_MUL + _PCG_ADD
+        for _ in range(2):
+            v[:, 0] += v[:, 1] * _PCG_MUL
+            v[:, 1] += v[:, 0] * _PCG_MUL
+            if _ == 0:
+                v ^= v >> np.int32(16)
+    return _to_unit(v)
+
+
+def _jitter(cells):
+    """Each cell's point, in the cell's own [0, 1]^D."""
+    return cell_random2(cells) if cells.shape[1] == 2 else cell_random(cells)
+
+
+def _colour(cells):
+    """Each cell's colour (N, 3): 2D cells hash as (x, y, 0)."""
+    if cells.shape[1] == 2:
+        cells = np.concatenate([cells, np.zeros((len(cells), 1), np.int32)], axis=1)
+    return cell_random(cells)
+
+
+def _offsets(dims, reach=1):
+    return [np.int32(o[::-1]) for o in product(range(-reach, reach + 1), repeat=dims)]
 
 
 def voronoi_distance(a, b, metric="EUCLIDEAN", exponent=1.0):
-    """Cycles' voronoi_distance between point rows a and b (N, 3)."""
+    """Cycles' voronoi_distance between point rows a and b (N, D)."""
     d = np.abs(a - b)
     if metric == "MANHATTAN":
         return d.sum(axis=1)
@@ -46,79 +84,71 @@ def voronoi_distance(a, b, metric="EUCLIDEAN", exponent=1.0):
     return np.sqrt((d * d).sum(axis=1))
 
 
-def voronoi_f1(coord, randomness, metric="EUCLIDEAN", exponent=1.0, second=False):
-    """(distance (N,), colour (N, 3), position (N, 3)) of Cycles' 3D Voronoi
-    F1 (or F2 with ``second``): the nearest (second nearest) of the jittered
-    points of the 27 cells around each point, by ``metric``."""
+def _cells(coord):
     floor = np.floor(coord)
-    local = coord - floor
-    cell = floor.astype(np.int64).astype(np.int32)
+    return floor, coord - floor, floor.astype(np.int64).astype(np.int32)
+
+
+def voronoi_f1(coord, randomness, metric="EUCLIDEAN", exponent=1.0, second=False):
+    """(distance (N,), colour (N, 3), position (N, D)) of Cycles' Voronoi F1
+    (or F2 with ``second``) of points (N, D): the nearest (second nearest) of
+    the jittered points of the 3^D cells around each point, by ``metric``."""
+    floor, local, cell = _cells(coord)
     n = len(coord)
     best, best2 = np.full(n, np.inf, np.float32), np.full(n, np.inf, np.float32)
     offset1, offset2 = np.zeros_like(coord), np.zeros_like(coord)
     point1, point2 = np.zeros_like(coord), np.zeros_like(coord)
     r = f32(randomness).reshape(-1, 1)
-    for k in (-1, 0, 1):
-        for j in (-1, 0, 1):
-            for i in (-1, 0, 1):
-                offset = np.float32([i, j, k])
-                point = offset + cell_random(cell + np.int32([i, j, k])) * r
-                d = voronoi_distance(point, local, metric, exponent)
-                closer = d < best
-                if second:      # the old nearest becomes the second, or d does
-                    nearer2 = ~closer & (d < best2)
-                    best2 = np.where(closer, best, np.where(nearer2, d, best2))
-                    offset2 = np.where(closer[:, None], offset1, np.where(nearer2[:, None], offset, offset2))
-                    point2 = np.where(closer[:, None], point1, np.where(nearer2[:, None], point, point2))
-                best = np.where(closer, d, best)
-                offset1 = np.where(closer[:, None], offset, offset1)
-                point1 = np.where(closer[:, None], point, point1)
+    for o in _offsets(coord.shape[1]):
+        offset = o.astype(np.float32)
+        point = offset + _jitter(cell + o) * r
+        d = voronoi_distance(point, local, metric, exponent)
+        closer = d < best
+        if second:      # the old nearest becomes the second, or d does
+            nearer2 = ~closer & (d < best2)
+            best2 = np.where(closer, best, np.where(nearer2, d, best2))
+            offset2 = np.where(closer[:, None], offset1, np.where(nearer2[:, None], offset, offset2))
+            point2 = np.where(closer[:, None], point1, np.where(nearer2[:, None], point, point2))
+        best = np.where(closer, d, best)
+        offset1 = np.where(closer[:, None], offset, offset1)
+        point1 = np.where(closer[:, None], point, point1)
     if second:
         best, offset1, point1 = best2, offset2, point2
-    colour = cell_random(cell + offset1.astype(np.int32))
+    colour = _colour(cell + offset1.astype(np.int32))
     return best.astype(np.float32), colour, (point1 + floor).astype(np.float32)
 
 
 def voronoi_smooth_f1(coord, randomness, smoothness, metric="EUCLIDEAN", exponent=1.0):
-    """Cycles' 3D Smooth F1: the 125 cells around each point blended by a
+    """Cycles' Smooth F1: the 5^D cells around each point blended by a
     smooth minimum of width ``smoothness`` (already halved and clamped)."""
-    floor = np.floor(coord)
-    local = coord - floor
-    cell = floor.astype(np.int64).astype(np.int32)
+    floor, local, cell = _cells(coord)
     n = len(coord)
     sm = np.broadcast_to(f32(smoothness), (n,)).astype(np.float32)
     dist = np.full(n, 8.0, np.float32)
-    colour, position = np.zeros((n, 3), np.float32), np.zeros((n, 3), np.float32)
+    colour, position = np.zeros((n, 3), np.float32), np.zeros_like(coord)
     r = f32(randomness).reshape(-1, 1)
     with np.errstate(divide="ignore", invalid="ignore"):
-        for k in range(-2, 3):
-            for j in range(-2, 3):
-                for i in range(-2, 3):
-                    offset = np.float32([i, j, k])
-                    rnd = cell_random(cell + np.int32([i, j, k]))
-                    point = offset + rnd * r
-                    d = voronoi_distance(point, local, metric, exponent)
-                    t = np.clip(0.5 + 0.5 * (dist - d) / sm, 0.0, 1.0)
-                    h = np.where(sm > 0, t * t * (3.0 - 2.0 * t), (d < dist).astype(np.float32))
-                    correction = sm * h * (1.0 - h)
-                    dist = dist + h * (d - dist) - correction
-                    correction = (correction / (1.0 + 3.0 * sm))[:, None]
-                    hh = h[:, None]
-                    colour = colour + hh * (rnd - colour) - correction
-                    position = position + hh * (point - position) - correction
+        for o in _offsets(coord.shape[1], 2):
+            point = o.astype(np.float32) + _jitter(cell + o) * r
+            d = voronoi_distance(point, local, metric, exponent)
+            t = np.clip(0.5 + 0.5 * (dist - d) / sm, 0.0, 1.0)
+            h = np.where(sm > 0, t * t * (3.0 - 2.0 * t), (d < dist).astype(np.float32))
+            correction = sm * h * (1.0 - h)
+            dist = dist + h * (d - dist) - correction
+            correction = (correction / (1.0 + 3.0 * sm))[:, None]
+            hh = h[:, None]
+            colour = colour + hh * (_colour(cell + o) - colour) - correction
+            position = position + hh * (point - position) - correction
     return dist.astype(np.float32), colour.astype(np.float32), (position + floor).astype(np.float32)
 
 
 def voronoi_distance_to_edge(coord, randomness):
-    """(N,) Cycles' 3D Distance to Edge: from the point to the nearest edge
-    of its cell, the plane halfway between the nearest cell point and each
-    of the others around (Euclidean, as Cycles always measures it)."""
-    floor = np.floor(coord)
-    local = coord - floor
-    cell = floor.astype(np.int64).astype(np.int32)
+    """(N,) Cycles' Distance to Edge: from the point to the nearest edge of
+    its cell, the plane halfway between the nearest cell point and each of
+    the others around (Euclidean, as Cycles always measures it)."""
+    _floor, local, cell = _cells(coord)
     r = f32(randomness).reshape(-1, 1)
-    offsets = [np.float32([i, j, k]) for k in (-1, 0, 1) for j in (-1, 0, 1) for i in (-1, 0, 1)]
-    to_points = [o + cell_random(cell + o.astype(np.int32)) * r - local for o in offsets]
+    to_points = [o.astype(np.float32) + _jitter(cell + o) * r - local for o in _offsets(coord.shape[1])]
     best = np.full(len(coord), 8.0, np.float32)
     closest = np.zeros_like(coord)
     for v in to_points:
@@ -138,36 +168,29 @@ def voronoi_distance_to_edge(coord, randomness):
 
 
 def voronoi_n_sphere_radius(coord, randomness):
-    """(N,) Cycles' 3D N-Sphere Radius: half the distance from the nearest
-    cell point to the point nearest to it (of the 26 cells around its own)."""
-    floor = np.floor(coord)
-    local = coord - floor
-    cell = floor.astype(np.int64).astype(np.int32)
+    """(N,) Cycles' N-Sphere Radius: half the distance from the nearest cell
+    point to the point nearest to it (of the cells around its own)."""
+    _floor, local, cell = _cells(coord)
     r = f32(randomness).reshape(-1, 1)
-    n = len(coord)
-    best, closest, closest_cell = np.full(n, 8.0, np.float32), np.zeros_like(coord), np.zeros((n, 3), np.int32)
-    for k in (-1, 0, 1):
-        for j in (-1, 0, 1):
-            for i in (-1, 0, 1):
-                o = np.int32([i, j, k])
-                point = o.astype(np.float32) + cell_random(cell + o) * r
-                d = np.sqrt(((point - local) ** 2).sum(axis=1))
-                closer = d < best
-                best = np.where(closer, d, best)
-                closest = np.where(closer[:, None], point, closest)
-                closest_cell = np.where(closer[:, None], o, closest_cell)
+    n, dims = coord.shape
+    best, closest, closest_cell = np.full(n, 8.0, np.float32), np.zeros_like(coord), np.zeros((n, dims), np.int32)
+    for o in _offsets(dims):
+        point = o.astype(np.float32) + _jitter(cell + o) * r
+        d = np.sqrt(((point - local) ** 2).sum(axis=1))
+        closer = d < best
+        best = np.where(closer, d, best)
+        closest = np.where(closer[:, None], point, closest)
+        closest_cell = np.where(closer[:, None], o, closest_cell)
     best, neighbour = np.full(n, 8.0, np.float32), np.zeros_like(coord)
-    for k in (-1, 0, 1):
-        for j in (-1, 0, 1):
-            for i in (-1, 0, 1):
-                if i == 0 and j == 0 and k == 0:
-                    continue
-                o = closest_cell + np.int32([i, j, k])
-                point = o.astype(np.float32) + cell_random(cell + o) * r
-                d = np.sqrt(((point - closest) ** 2).sum(axis=1))
-                closer = d < best
-                best = np.where(closer, d, best)
-                neighbour = np.where(closer[:, None], point, neighbour)
+    for o in _offsets(dims):
+        if not o.any():
+            continue
+        c = closest_cell + o
+        point = c.astype(np.float32) + _jitter(cell + c) * r
+        d = np.sqrt(((point - closest) ** 2).sum(axis=1))
+        closer = d < best
+        best = np.where(closer, d, best)
+        neighbour = np.where(closer[:, None], point, neighbour)
     return (np.sqrt(((neighbour - closest) ** 2).sum(axis=1)) * 0.5).astype(np.float32)
 
 
@@ -179,22 +202,23 @@ VORONOI_FEATURES = ("F1", "F2", "SMOOTH_F1", "DISTANCE_TO_EDGE", "N_SPHERE_RADIU
 def voronoi_texture(inp, geom, n, sh):
     props = n.props
     feature, metric = props.get("feature", "F1"), props.get("distance", "EUCLIDEAN")
-    if (props.get("voronoi_dimensions", "3D") != "3D" or feature not in VORONOI_FEATURES
+    dims = 2 if props.get("voronoi_dimensions", "3D") == "2D" else 3
+    if (props.get("voronoi_dimensions", "3D") not in ("2D", "3D") or feature not in VORONOI_FEATURES
             or np.any(f32(inp.float("Detail", 0.0)) > 0) or props.get("normalize", False)):
         sh.warn_once(("voronoi", props.get("voronoi_dimensions"), feature),
-                     f"Voronoi Texture '{n.name}': only 3D without detail is evaluated; using it")
+                     f"Voronoi Texture '{n.name}': only 2D and 3D without detail are evaluated; using 3D")
         feature = feature if feature in VORONOI_FEATURES else "F1"
     v = inp.vector("Vector") if inp.linked("Vector") else geom.generated
-    p = np.ascontiguousarray(np.broadcast_to(f32(v), (geom.n, 3)) * f32(inp.float("Scale", 5.0)).reshape(-1, 1),
-                             np.float32)
     scale = np.maximum(f32(inp.float("Scale", 5.0)), 1e-8)
+    p = np.broadcast_to(f32(v), (geom.n, 3)) * f32(inp.float("Scale", 5.0)).reshape(-1, 1)
+    p = np.ascontiguousarray(p[:, :dims], np.float32)
     randomness = np.clip(inp.float("Randomness", 1.0), 0, 1)
     exponent = inp.float("Exponent", 0.5)
-    if feature in ("DISTANCE_TO_EDGE", "N_SPHERE_RADIUS"):
-        zero, zero3 = np.zeros(geom.n, np.float32), np.zeros((geom.n, 3), np.float32)
-        if feature == "N_SPHERE_RADIUS":
-            return {"Radius": voronoi_n_sphere_radius(p, randomness), "Distance": zero, "Color": zero3,
-                    "Position": zero3, "W": zero}
+    zero, zero3 = np.zeros(geom.n, np.float32), np.zeros((geom.n, 3), np.float32)
+    if feature == "N_SPHERE_RADIUS":
+        return {"Radius": voronoi_n_sphere_radius(p, randomness), "Distance": zero, "Color": zero3,
+                "Position": zero3, "W": zero}
+    if feature == "DISTANCE_TO_EDGE":
         return {"Distance": voronoi_distance_to_edge(p, randomness), "Color": zero3, "Position": zero3,
                 "W": zero, "Radius": zero}
     if feature == "SMOOTH_F1":
@@ -202,5 +226,7 @@ def voronoi_texture(inp, geom, n, sh):
         dist, colour, position = voronoi_smooth_f1(p, randomness, smoothness, metric, exponent)
     else:
         dist, colour, position = voronoi_f1(p, randomness, metric, exponent, second=feature == "F2")
+    if dims == 2:       # a 2D position lies in the z = 0 plane
+        position = np.concatenate([position, np.zeros((geom.n, 1), np.float32)], axis=1)
     return {"Distance": dist, "Color": colour, "Position": (position / scale.reshape(-1, 1)).astype(np.float32),
-            "W": np.zeros(geom.n, np.float32), "Radius": np.zeros(geom.n, np.float32)}
+            "W": zero, "Radius": zero}
