@@ -93,3 +93,16 @@ def furnace(albedo=0.5, world=1.0, width=16, height=16):
     cam = Camera(to_world=look_at((0, 0, 5), (0, 0, 0), up=(0, 1, 0)), lens=50.0)
     return make_scene(v, t, m, mats, Lights.empty(), cam, world_color=(world,) * 3,
                       width=width, height=height)
+
+
+def tilted_emitter(width=20, height=20):
+    """A bright square at an angle in front of a grey backdrop under a dim
+    world: its outline crosses pixels at every slope (anti-aliasing tests)."""
+    b = Builder()
+    b.add(*quad((-1.0, 1.0, -0.6), (1.6, 0, 0), (0, 0, 1.6)), 0)
+    b.add(*quad((-0.45, 0.0, -0.1), (0.6, 0, 0.25), (-0.2, 0, 0.55)), 1)
+    mats = Materials.from_list([{"base_color": (0.5, 0.5, 0.5)},
+                                {"base_color": (0, 0, 0), "emission": (8.0, 8.0, 8.0)}])
+    cam = Camera(to_world=look_at((0, -4, 0), (0, 0, 0)), lens=50.0, sensor_width=36.0)
+    return make_scene(*b.arrays(), mats, Lights.empty(), cam, world_color=(0.2, 0.2, 0.2),
+                      width=width, height=height)

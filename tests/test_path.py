@@ -10,7 +10,7 @@ from core import Camera, Lights, Materials, RenderContext, RenderSettings, make_
 from core.camera import PixelFilter
 from core.integrators.path import camera_pass
 from core.scene import LIGHT_AREA, LIGHT_POINT, LIGHT_SUN
-from scenes import Builder, cornell_box, furnace, look_at, quad
+from scenes import Builder, cornell_box, furnace, look_at, quad, tilted_emitter
 
 
 def render(scene, samples, max_bounces, seed=0, frame=0):
@@ -221,14 +221,7 @@ def test12_pixel_positions_over_samples_are_spread():
     rotated R2 sequence (as Cycles' Sobol pattern): at the pixels a bright
     outline crosses, 16 samples spread less over seeds than 16 independent
     ones would (the 1-sample spread over 16), with the same mean."""
-    b = Builder()
-    b.add(*quad((-1.0, 1.0, -0.6), (1.6, 0, 0), (0, 0, 1.6)), 0)
-    b.add(*quad((-0.45, 0.0, -0.1), (0.6, 0, 0.25), (-0.2, 0, 0.55)), 1)
-    mats = Materials.from_list([{"base_color": (0.5, 0.5, 0.5)},
-                                {"base_color": (0, 0, 0), "emission": (8.0, 8.0, 8.0)}])
-    scene = make_scene(*b.arrays(), mats, Lights.empty(), Camera(to_world=look_at((0, -4, 0), (0, 0, 0))),
-                       world_color=(0.2, 0.2, 0.2), width=16, height=16)
-    ctx = RenderContext.build(scene)
+    ctx = RenderContext.build(tilted_emitter(16, 16))
     try:
         lum = np.array([0.2126, 0.7152, 0.0722])
         sixteen = np.array([render_frame(ctx, RenderSettings(samples=16, max_bounces=0, seed=s)).mean() @ lum

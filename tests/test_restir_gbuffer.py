@@ -7,11 +7,11 @@ from statistics import NormalDist
 import numpy as np
 import pytest
 
-from core import Camera, Lights, Materials, RenderContext, make_scene
+from core import RenderContext
 from core.camera import PixelFilter
 from core.restir.gbuffer import stream_jitter, trace_gbuffer
 from core.sampling import luminance
-from scenes import Builder, look_at, quad
+from scenes import tilted_emitter
 
 SIZE = 20
 FRAMES = 16
@@ -20,16 +20,8 @@ SEEDS = 48
 
 @pytest.fixture(scope="module")
 def ctx():
-    """A bright square at an angle in front of a grey backdrop: its outline
-    crosses pixels at every slope."""
-    b = Builder()
-    b.add(*quad((-1.0, 1.0, -0.6), (1.6, 0, 0), (0, 0, 1.6)), 0)
-    b.add(*quad((-0.45, 0.0, -0.1), (0.6, 0, 0.25), (-0.2, 0, 0.55)), 1)
-    mats = Materials.from_list([{"base_color": (0.5, 0.5, 0.5)},
-                                {"base_color": (0, 0, 0), "emission": (8.0, 8.0, 8.0)}])
-    cam = Camera(to_world=look_at((0, -4, 0), (0, 0, 0)), lens=50.0, sensor_width=36.0)
-    c = RenderContext.build(make_scene(*b.arrays(), mats, Lights.empty(), cam, world_color=(0.2, 0.2, 0.2),
-                                       width=SIZE, height=SIZE))
+    """A bright square at an angle: its outline crosses pixels at every slope."""
+    c = RenderContext.build(tilted_emitter(SIZE, SIZE))
     yield c
     c.close()
 
