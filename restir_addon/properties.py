@@ -9,8 +9,8 @@ MODE_ITEMS = (
      "Reuse indirect-light samples across pixels and frames; 1/M weights: least noise, slightly dark "
      "near contact shadows"),
     ("RESTIR_UNBIASED", "ReSTIR GI (Unbiased)",
-     "Reuse indirect-light samples across pixels and frames; 1/Z weights with a visibility ray per "
-     "reused neighbour: converges to the path-traced result"),
+     "Reuse indirect-light samples across pixels and frames; MIS weights with visibility rays "
+     "between neighbours: converges to the path-traced result"),
 )
 
 INITIAL_SAMPLING_ITEMS = (

@@ -106,3 +106,18 @@ def tilted_emitter(width=20, height=20):
     cam = Camera(to_world=look_at((0, -4, 0), (0, 0, 0)), lens=50.0, sensor_width=36.0)
     return make_scene(*b.arrays(), mats, Lights.empty(), cam, world_color=(0.2, 0.2, 0.2),
                       width=width, height=height)
+
+
+def open_yard(width=32, height=32):
+    """Ground, a wall and two blocks under a bright constant sky (no lights):
+    open surfaces whose indirect light is mostly sky found by BSDF samples,
+    partly hidden near the wall and the blocks."""
+    b = Builder()
+    b.add(*quad((-6, -6, 0), (12, 0, 0), (0, 12, 0)), 0)
+    b.add_box((-6, 3, 0), (6, 3.5, 3), 1)
+    b.add_box((-2, -1, 0), (-0.8, 0.2, 1.5), 1)
+    b.add_box((1, 0.5, 0), (2.5, 1.5, 0.8), 0)
+    mats = Materials.from_list([{"base_color": (0.45, 0.43, 0.4)}, {"base_color": (0.78, 0.72, 0.62)}])
+    cam = Camera(to_world=look_at((-1, -7, 3.5), (0.5, 1.5, 0.5)), lens=35.0, sensor_width=36.0)
+    return make_scene(*b.arrays(), mats, Lights.empty(), cam, world_color=(0.42, 0.62, 1.0),
+                      width=width, height=height)

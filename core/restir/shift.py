@@ -54,6 +54,18 @@ def shift_weight_of(x2, ng2, lum_wm, x1_owner, x1_receiver, ng_receiver, ns_rece
     """shift_weight from the sample points x2, their normals ng2 and each
     reservoir's luminance(Lo) W M (0 without a sample): target_at and jacobian
     in one pass over the shared terms."""
+    p_r, j = shift_target(x2, ng2, lum_wm, x1_owner, x1_receiver, ng_receiver, ns_receiver)
+    if biased:
+        j = np.clip(j, *J_CLAMP)
+    with np.errstate(invalid="ignore", over="ignore"):
+        w = p_r * j
+    return w.astype(np.float32)
+
+
+def shift_target(x2, ng2, lum, x1_owner, x1_receiver, ng_receiver, ns_receiver):
+    """Samples x2 (normals ng2, luminance(Lo) ``lum``) found from x1_owner, at
+    receivers: (lum times the cosine at the receiver, zero where they do not
+    face each other or the shift is rejected; the Jacobian J of the shift)."""
     b = x1_receiver - x2                      # from the sample to the receiver
     a = x1_owner - x2                         # from the sample to its owner
     db2 = np.maximum(dot(b, b), 1e-30)
@@ -65,11 +77,9 @@ def shift_weight_of(x2, ng2, lum_wm, x1_owner, x1_receiver, ng_receiver, ns_rece
     with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
         j = (b_n2 * inv_db) / (np.abs(dot(a, ng2)) / np.sqrt(da2)) * (da2 / db2)
     ok = facing & (j >= J_MIN) & (j <= J_MAX)
-    if biased:
-        j = np.clip(j, *J_CLAMP)
     with np.errstate(invalid="ignore", over="ignore"):
-        w = np.where(ok, lum_wm * cos_r * j, 0.0)
-    return w.astype(np.float32)
+        p_r = np.where(ok, lum * cos_r, 0.0)
+    return p_r, np.where(ok, j, 0.0)
 
 
 def visible(ctx, x1, ng1, ns1, res, where=None):
