@@ -6,7 +6,7 @@ import numpy as np
 from core import RenderContext
 from core.restir import ReSTIRGI, ReSTIRSettings
 from core.restir.shading import VISIBILITY_MAX_AGE, VISIBILITY_MAX_MOVE, carried_visibility
-from core.restir.spatial import visible
+from core.restir.shift import visible
 from test_restir_temporal import inside_box
 
 
