@@ -59,10 +59,11 @@ def test_narrow_state_changes_images_by_float16_rounding_only(mode, monkeypatch)
             assert np.array_equal(getattr(a, name), getattr(b, name)), name
         assert (a.M == b.M).mean() > 0.99
         scale = max(float(np.abs(b.indirect).mean()), 1e-6)
-        assert np.abs(a.indirect - b.indirect).mean() < 5e-4 * scale
         # Rounding can flip a resampling choice (which candidate wins) in
         # a pixel or two; elsewhere the difference is the rounding's.
-        far = np.abs(a.indirect - b.indirect).max(axis=1) >= 2e-3 * max(float(np.abs(b.indirect).max()), 1e-6)
+        diff = np.abs(a.indirect - b.indirect)
+        far = diff.max(axis=1) >= 2e-3 * max(float(np.abs(b.indirect).max()), 1e-6)
+        assert diff[~far].mean() < 5e-4 * scale
         assert far.mean() < 0.005, int(far.sum())
 
 
