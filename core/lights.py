@@ -32,6 +32,7 @@ from .light_grid import LightGrid
 from .materials import emission_at_points, emissive_triangles, shading
 from .rows import divide, gather, rows_finite, scale, scatter
 from .sampling import Distribution1D, dot, luminance, square_to_uniform_triangle
+from . import spherical_triangle
 from .scene import LIGHT_AREA, LIGHT_POINT, LIGHT_SPOT, LIGHT_SUN
 
 __all__ = ["INF_DIST", "LightSample", "LightSet"]
@@ -340,15 +341,28 @@ class LightSet:
         slot = li - self.n_analytic
         one = _same_index(slot)
         b1, b2 = square_to_uniform_triangle(u)
-        q = (_per_row(self.tri_p0, slot, one) + scale(_per_row(self.tri_e1, slot, one), b1)
-             + scale(_per_row(self.tri_e2, slot, one), b2))
+        p0, e1, e2 = (_per_row(t, slot, one) for t in (self.tri_p0, self.tri_e1, self.tri_e2))
+        # Triangles that a point sees under a large solid angle: uniform in it.
+        omega, near = spherical_triangle.large_solid_angles(p, p0, e1, e2)
+        if len(near):
+            corners = [np.broadcast_to(v, p.shape) if len(v) == 1 and len(p) > 1 else v
+                       for v in (p0, p0 + e1, p0 + e2)]
+            _w, s1, s2 = spherical_triangle.sample(gather(p, near), *(gather(v, near) for v in corners),
+                                                   gather(u, near))
+            b1, b2 = b1.copy(), b2.copy()
+            b1[near], b2[near] = s1, s2
+        q = p0 + scale(e1, b1) + scale(e2, b2)
         to_q = q - p
         d2 = np.maximum(dot(to_q, to_q), 1e-20)
         d = np.sqrt(d2)
         wi = divide(to_q, d).astype(np.float32, copy=False)
         cos_l = -dot(wi, _per_row(self.tri_normal, slot, one))
         visible_side = np.abs(cos_l) > 1e-7 if self.two_sided else cos_l > 1e-7
-        pdf = np.where(visible_side, d2 / np.maximum(np.abs(cos_l), 1e-12) / _per_row(self.tri_area, slot, one), 0.0)
+        pdf = d2 / np.maximum(np.abs(cos_l), 1e-12) / _per_row(self.tri_area, slot, one)
+        if len(near):
+            pdf = pdf.astype(np.float64)
+            pdf[near] = 1.0 / omega[near]
+        pdf = np.where(visible_side, pdf, 0.0)
         rad = _rows_where(visible_side, _per_row(self.tri_emission, slot, one))
         if self.tri_textured is not None:
             rows = np.nonzero(np.take(self.tri_textured, slot) & visible_side)[0]
@@ -391,6 +405,11 @@ class LightSet:
         d2 = dot(to_q, to_q)
         cos_l = np.abs(dot(wi, gather(self.tri_normal, s)))
         pdf = pmf * d2 / np.maximum(cos_l, 1e-12) / np.take(self.tri_area, s)
+        omega, near = spherical_triangle.large_solid_angles(p_ref, gather(self.tri_p0, s), gather(self.tri_e1, s),
+                                         gather(self.tri_e2, s))
+        if len(near):       # sampled by solid angle from there (_sample_triangle)
+            pdf = pdf.astype(np.float64)
+            pdf[near] = np.take(pmf, near) / omega[near]
         return np.where(ok, pdf, 0.0).astype(np.float32)
 
     def pdf_world(self, d, n=None):

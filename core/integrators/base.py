@@ -72,7 +72,7 @@ class ShadingFrame:
 
 
 def direct_light(ctx, surf, frame, seeds, bounce, mis=True, strategy_pdf=None, u_light=None,
-                 weigh=None):
+                 weigh=None, count=None):
     """Next-event estimation at surface hits: one light sample and one shadow ray each.
 
     Returns the reflected radiance toward wo, (N, 3). With ``mis`` the sample is
@@ -83,6 +83,8 @@ def direct_light(ctx, surf, frame, seeds, bounce, mis=True, strategy_pdf=None, u
     u_light: (u_select, u) to use instead of the seeds' own light dimensions.
     weigh(ls, wi_local, f, w) -> (N, 3): f weighted, in place of f x w (ReSTIR
     splits the world's light between NEE and its reservoirs lobe by lobe).
+    count: (N,) light samples each point takes, of which this is one (the
+    MIS weights count them all against the one BSDF sample: ``mis_counted``).
     """
     n = len(surf)
     out = np.zeros((n, 3), np.float32)
@@ -109,7 +111,7 @@ def direct_light(ctx, surf, frame, seeds, bounce, mis=True, strategy_pdf=None, u
     cos = np.abs(wi_local[:, 2])
     above = (dot(ls.wi, surf.ng) > 0) == (wi_local[:, 2] > 0)
     if mis and not delta:
-        w = np.where(ls.delta, 1.0, power_heuristic(ls.pdf, pdf_b))
+        w = np.where(ls.delta, 1.0, power_heuristic(ls.pdf if count is None else ls.pdf * count, pdf_b))
     else:
         w = np.ones(n, np.float32)
     with np.errstate(invalid="ignore", divide="ignore", over="ignore"):

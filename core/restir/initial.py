@@ -162,9 +162,15 @@ def initial_samples(ctx, gb, seed, frame, sample, max_bounces, sampling=COSINE, 
     # all in one batch ...
     lights = ctx.lights
     counts = np.broadcast_to(np.maximum(np.asarray(light_samples, np.int64), 1), (len(index),))
+    # With k light samples a point weighs each against its one BSDF-sampled
+    # ray as k samples of the light strategy (Veach's n_i p_i): near a bright
+    # emitter the BSDF ray kept the weight of a single light sample, and more
+    # light samples left its noise as it was (the room of small emitters:
+    # 16 light samples a point, direct light's variance 0.12 -> 0.108).
+    countf = counts.astype(np.float32)
     d = direct_light(ctx, surf, frame_sh, seeds, 0, mis=True,
                      strategy_pdf=lambda w_l: _source_pdf(params, wo_l, w_l, sampling),
-                     weigh=_world_split(lights, params))
+                     weigh=_world_split(lights, params), count=countf)
     extra = counts - 1
     if extra.any():
         # Samples k = 1 .. count - 1 of the points that take more; sample 0 is
@@ -179,7 +185,7 @@ def initial_samples(ctx, gb, seed, frame, sample, max_bounces, sampling=COSINE, 
         params_k, wo_k = frame_k.params, frame_k.wo_local
         more = direct_light(ctx, surf_k, frame_k, seeds[rep], 0, mis=True, u_light=u_light,
                             strategy_pdf=lambda w_l: _source_pdf(params_k, wo_k, w_l, sampling),
-                            weigh=_world_split(lights, params_k))
+                            weigh=_world_split(lights, params_k), count=countf[rep])
         for c in range(3):
             d[:, c] += np.bincount(rep, weights=more[:, c], minlength=len(index)).astype(np.float32)
         d = scale(d, 1.0 / counts.astype(np.float32))
@@ -192,7 +198,7 @@ def initial_samples(ctx, gb, seed, frame, sample, max_bounces, sampling=COSINE, 
     # ... plus the emitters the sample ray finds (analytic lights, emissive
     # triangles), weighted against the same NEE (lights' selection).
     if lights.n_analytic:
-        scatter_add(d, rows, weight_r * lights.emitted_along(o, wi_r, hits.t, pdf_bsdf=pdf[rows],
+        scatter_add(d, rows, weight_r * lights.emitted_along(o, wi_r, hits.t, pdf_bsdf=pdf[rows] / countf[rows],
                                                              kinds=None if kinds is None else kinds[rows]))
     surf2, hit_idx = surface_hits(scene, o, wi_r, hits)
     rows2 = rows[hit_idx]
@@ -200,7 +206,8 @@ def initial_samples(ctx, gb, seed, frame, sample, max_bounces, sampling=COSINE, 
         le = materials.surface_emission(scene, surf2, lights)
         if (row_max(le) > 0).any():
             pdf_l = lights.pdf_triangle(surf2.prim, gather(surf.p, rows2), surf2.p, -surf2.wo)
-            scatter_add(d, rows2, scale(gather(weight, rows2) * le, power_heuristic(pdf[rows2], pdf_l)))
+            scatter_add(d, rows2, scale(gather(weight, rows2) * le,
+                                        power_heuristic(pdf[rows2], pdf_l * countf[rows2])))
     scatter(direct, index, d)
 
     # The sample: x2 and its outgoing radiance toward x1 (its own emission is
@@ -230,7 +237,7 @@ def initial_samples(ctx, gb, seed, frame, sample, max_bounces, sampling=COSINE, 
         pm = index[miss]
         wi_m = gather(wi, miss)
         le = lights.world_radiance(wi_m)
-        w_b = power_heuristic(pdf[miss], lights.pdf_world(wi_m, gather(surf.ns, miss)))
+        w_b = power_heuristic(pdf[miss], lights.pdf_world(wi_m, gather(surf.ns, miss)) * countf[miss])
         lo_glossy = np.concatenate([lo, scale(le, w_b).astype(np.float32)])
         scatter(res.x2, pm, gather(surf.p, miss) + wi_m * far)
         for name in ("ng2", "n2", "wo2"):
