@@ -121,3 +121,15 @@ def open_yard(width=32, height=32):
     cam = Camera(to_world=look_at((-1, -7, 3.5), (0.5, 1.5, 0.5)), lens=35.0, sensor_width=36.0)
     return make_scene(*b.arrays(), mats, Lights.empty(), cam, world_color=(0.42, 0.62, 1.0),
                       width=width, height=height)
+
+
+def glow_by_wall(width=24, height=24):
+    """A small emissive cube 4 cm in front of a grey wall, seen straight on:
+    the wall around it is lit from closer than the cube is wide."""
+    b = Builder()
+    b.add(*quad((-1, 0.5, -1), (2, 0, 0), (0, 0, 2)), 0)
+    b.add_box((-0.06, 0.34, -0.06), (0.06, 0.46, 0.06), 1)
+    mats = Materials.from_list([{"base_color": (0.6, 0.6, 0.6)},
+                                {"base_color": (0, 0, 0), "emission": (12.0, 10.0, 8.0)}])
+    cam = Camera(to_world=look_at((0.3, -1.2, 0.2), (0, 0.5, 0)), lens=50.0, sensor_width=36.0)
+    return make_scene(*b.arrays(), mats, Lights.empty(), cam, width=width, height=height)
