@@ -18,6 +18,7 @@ evaluated by the same rule.
 import numpy as np
 
 from .rows import gather
+from .sampling import dot as _dot, normalize as _unit
 
 # A triangle is sampled by solid angle from points that see it under more
 # than this (steradians): beyond ~1e-3 Arvo's angles lose digits even in
@@ -29,17 +30,8 @@ MIN_SOLID_ANGLE = 0.02
 MAX_SOLID_ANGLE = 1.5 * np.pi
 
 
-def _dot(a, b):
-    ab = a * b
-    return ab[:, 0] + ab[:, 1] + ab[:, 2]
-
-
-def _unit(v):
-    n = np.sqrt(_dot(v, v))
-    return v / np.where(n > 0, n, 1.0)[:, None]
-
-
 def _cross(a, b):
+    """Row-wise cross product of (N, 3) arrays, column by column (np.cross is slow on rows)."""
     return np.stack([a[:, 1] * b[:, 2] - a[:, 2] * b[:, 1],
                      a[:, 2] * b[:, 0] - a[:, 0] * b[:, 2],
                      a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]], axis=1)
