@@ -405,8 +405,8 @@ class LightSet:
         d2 = dot(to_q, to_q)
         cos_l = np.abs(dot(wi, gather(self.tri_normal, s)))
         pdf = pmf * d2 / np.maximum(cos_l, 1e-12) / np.take(self.tri_area, s)
-        omega, near = spherical_triangle.large_solid_angles(p_ref, gather(self.tri_p0, s), gather(self.tri_e1, s),
-                                         gather(self.tri_e2, s))
+        omega, near = spherical_triangle.large_solid_angles(
+            p_ref, gather(self.tri_p0, s), gather(self.tri_e1, s), gather(self.tri_e2, s))
         if len(near):       # sampled by solid angle from there (_sample_triangle)
             pdf = pdf.astype(np.float64)
             pdf[near] = np.take(pmf, near) / omega[near]

@@ -83,8 +83,8 @@ def direct_light(ctx, surf, frame, seeds, bounce, mis=True, strategy_pdf=None, u
     u_light: (u_select, u) to use instead of the seeds' own light dimensions.
     weigh(ls, wi_local, f, w) -> (N, 3): f weighted, in place of f x w (ReSTIR
     splits the world's light between NEE and its reservoirs lobe by lobe).
-    count: (N,) light samples each point takes, of which this is one (the
-    MIS weights count them all against the one BSDF sample: ``mis_counted``).
+    count: (N,) light samples each point takes, of which this is one: the
+    MIS weights count them all (count x pdf) against the one BSDF sample.
     """
     n = len(surf)
     out = np.zeros((n, 3), np.float32)

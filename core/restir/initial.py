@@ -188,7 +188,7 @@ def initial_samples(ctx, gb, seed, frame, sample, max_bounces, sampling=COSINE, 
                             weigh=_world_split(lights, params_k), count=countf[rep])
         for c in range(3):
             d[:, c] += np.bincount(rep, weights=more[:, c], minlength=len(index)).astype(np.float32)
-        d = scale(d, 1.0 / counts.astype(np.float32))
+        d = scale(d, 1.0 / countf)
 
     rows = np.nonzero(ok)[0]
     wi_r, weight_r = gather(wi, rows), gather(weight, rows)
