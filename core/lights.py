@@ -9,7 +9,8 @@ BSDF-sampled rays see of the analytic lights, and ``pdf_triangle`` and
 ``pdf_world`` give the NEE pdf of an emissive triangle a ray hit or of the
 world a ray escaped to, so both strategies combine by multiple importance
 sampling. The analytic lights themselves live in core/analytic_lights.py, the
-world in core/environment.py.
+emissive triangles in core/emissive_triangles.py, the world in
+core/environment.py.
 
 Selection weights approximate emitted power: the luminance of a light's power;
 a sun's irradiance times the scene's cross-section pi R^2 (R: half the
@@ -25,14 +26,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .analytic_lights import (INF_DIST, AnalyticLights, _by_code, _empty_sample, _per_row,
-                              _rows_where, _same_index)
+from .analytic_lights import INF_DIST, AnalyticLights, _by_code, _empty_sample
 from .environment import scene_environment
 from .light_grid import LightGrid
-from .materials import emission_at_points, emissive_triangles, shading
-from .rows import divide, gather, rows_finite, scale, scatter
-from .sampling import Distribution1D, dot, luminance, square_to_uniform_triangle
-from . import spherical_triangle
+from .emissive_triangles import EmissiveTriangles
+from .rows import gather, rows_finite, scatter
+from .sampling import Distribution1D, luminance
 from .scene import LIGHT_AREA, LIGHT_POINT, LIGHT_SPOT, LIGHT_SUN
 
 __all__ = ["INF_DIST", "LightSample", "LightSet"]
@@ -71,36 +70,10 @@ class LightSet:
         self.n_analytic = len(scene.lights)
         self.two_sided = emission_two_sided
 
-        # Emissive triangles.
-        # Per triangle, from the materials' constant rows and shader graphs.
-        candidates, emission = emissive_triangles(scene)
-        # Object ids whose triangles may emit (follow() keeps the set while
-        # only other objects move).
-        self.emitting_objects = np.unique(scene.object_ids[candidates]) if len(candidates) \
-            else np.zeros(0, np.int32)
-        lum = luminance(emission) if len(emission) else np.zeros(0, np.float32)
-        self.tri_index = candidates[lum > 0].astype(np.int32)
-        tri = scene.triangles[self.tri_index]
-        self.tri_p0 = scene.vertices[tri[:, 0]] if len(tri) else np.zeros((0, 3), np.float32)
-        self.tri_e1 = (scene.vertices[tri[:, 1]] - self.tri_p0) if len(tri) else np.zeros((0, 3), np.float32)
-        self.tri_e2 = (scene.vertices[tri[:, 2]] - self.tri_p0) if len(tri) else np.zeros((0, 3), np.float32)
-        cross = np.cross(self.tri_e1, self.tri_e2) if len(tri) else np.zeros((0, 3), np.float32)
-        self.tri_area = (0.5 * np.linalg.norm(cross, axis=1)).astype(np.float32)
-        self.tri_normal = (cross / np.maximum(2 * self.tri_area, 1e-30)[:, None]).astype(np.float32)
-        self.tri_emission = emission[lum > 0]
-        # Emissive triangles whose graph varies over the surface: light
-        # samples read the emission at their own point (emission_at_points),
-        # as Cycles evaluates the emitter's shader there; tri_emission (the
-        # centre's) only weighs their selection.
-        varying = shading(scene).emitting
-        self._scene = scene
-        self.tri_textured = np.isin(scene.material_ids[self.tri_index], varying) if varying and len(tri) \
-            else None
-        if self.tri_textured is not None and not self.tri_textured.any():
-            self.tri_textured = None
-        # Map from any triangle to its slot among emissive ones (-1 if not emissive).
-        self.tri_slot = np.full(scene.triangle_count, -1, np.int32)
-        self.tri_slot[self.tri_index] = np.arange(len(self.tri_index), dtype=np.int32)
+        self.triangles = EmissiveTriangles(scene, emission_two_sided)
+        self.emitting_objects = self.triangles.emitting_objects
+        self.tri_index = self.triangles.index
+        self.tri_slot = self.triangles.slot
         # Per light, the kinds of bounce (diffuse, glossy, transmission) whose
         # rays its object is hidden from: light sampling leaves it out of
         # those lobes, as Cycles does (None: hidden from none).
@@ -128,11 +101,10 @@ class LightSet:
 
         # Selection weights ~ emitted power, in the order: analytic lights,
         # emissive triangles, the world.
-        w_tri = lum[lum > 0] * self.tri_area * np.pi * (2.0 if self.two_sided else 1.0)
         kind = scene.lights.kind
         group = np.select([(kind == LIGHT_POINT) | (kind == LIGHT_SPOT), kind == LIGHT_SUN,
                            kind == LIGHT_AREA], [_SPHERE, _SUN, _AREA], _NONE)
-        weights = [self.analytic.selection_weights(self.scene_radius), w_tri]
+        weights = [self.analytic.selection_weights(self.scene_radius), self.triangles.power]
         groups = [group, np.full(len(self.tri_index), _TRI)]
         # A constant world is no light for NEE, as in Cycles (which disables
         # the background light when the world shader does not vary with
@@ -158,7 +130,7 @@ class LightSet:
         whose radius suns and the world are weighed, are taken anew.
         Returns self."""
         self.lights = scene.lights
-        self._scene = scene
+        self.triangles.follow(scene)
         bounds = scene.bounds()
         if not all(np.array_equal(a, b) for a, b in zip(bounds, self._bounds)):
             self._bounds = bounds
@@ -186,7 +158,7 @@ class LightSet:
                 [np.minimum(0.5 * np.asarray(lt.spot_size, np.float64), np.pi), 0.5 * np.pi], np.pi)
         if len(self.tri_index) and not self.two_sided:
             t = slice(self.n_analytic, self.n_analytic + len(self.tri_index))
-            axis[t], spread[t] = self.tri_normal, 0.5 * np.pi
+            axis[t], spread[t] = self.triangles.normal, 0.5 * np.pi
         return axis, spread
 
     def _emitter_boxes(self):
@@ -203,10 +175,7 @@ class LightSet:
                 half = np.where(area[:, None], span, half)
             boxes[:self.n_analytic] = np.stack([pos - half, pos + half], 1)
         if len(self.tri_index):
-            corners = (self.tri_p0, self.tri_p0 + self.tri_e1, self.tri_p0 + self.tri_e2)
-            t = slice(self.n_analytic, self.n_analytic + len(self.tri_index))
-            boxes[t, 0] = np.minimum(np.minimum(*corners[:2]), corners[2])
-            boxes[t, 1] = np.maximum(np.maximum(*corners[:2]), corners[2])
+            boxes[self.n_analytic:self.n_analytic + len(self.tri_index)] = self.triangles.boxes()
         return boxes
 
     @staticmethod
@@ -291,17 +260,15 @@ class LightSet:
             pmf[rows] = np.take(self.distribution.pmf, idx[rows])
         return idx, pmf
 
-    def selection_pmf(self, idx, p=None, cells=None):
-        """Probability (N,) of NEE choosing emitters idx (N,) at points p
-        (N, 3) (or their grid cells)."""
+    def selection_pmf(self, idx, p):
+        """Probability (N,) of NEE choosing emitters idx (N,) at points p (N, 3)."""
         pmf = np.take(self.distribution.pmf, idx)
         if self.grid is None:
             return pmf
         slot = np.take(self._local_slot, idx)
         rows = np.nonzero(slot >= 0)[0]
         if len(rows):
-            cells = self.grid.cells(gather(p, rows)) if cells is None else np.take(cells, rows)
-            pmf[rows] = self._p_local * self.grid.pmf(np.take(slot, rows), cells=cells)
+            pmf[rows] = self._p_local * self.grid.pmf(np.take(slot, rows), gather(p, rows))
         return pmf
 
     def sample(self, p, u_select, u, n=None):
@@ -338,41 +305,7 @@ class LightSet:
                            pdf.astype(np.float32, copy=False), delta, world, idx)
 
     def _sample_triangle(self, li, p, u, n=None):
-        slot = li - self.n_analytic
-        one = _same_index(slot)
-        b1, b2 = square_to_uniform_triangle(u)
-        p0, e1, e2 = (_per_row(t, slot, one) for t in (self.tri_p0, self.tri_e1, self.tri_e2))
-        # Triangles that a point sees under a large solid angle: uniform in it.
-        omega, near = spherical_triangle.large_solid_angles(p, p0, e1, e2)
-        if len(near):
-            corners = [np.broadcast_to(v, p.shape) if len(v) == 1 and len(p) > 1 else v
-                       for v in (p0, p0 + e1, p0 + e2)]
-            _w, s1, s2 = spherical_triangle.sample(gather(p, near), *(gather(v, near) for v in corners),
-                                                   gather(u, near))
-            b1, b2 = b1.copy(), b2.copy()
-            b1[near], b2[near] = s1, s2
-        q = p0 + scale(e1, b1) + scale(e2, b2)
-        to_q = q - p
-        d2 = np.maximum(dot(to_q, to_q), 1e-20)
-        d = np.sqrt(d2)
-        wi = divide(to_q, d).astype(np.float32, copy=False)
-        cos_l = -dot(wi, _per_row(self.tri_normal, slot, one))
-        visible_side = np.abs(cos_l) > 1e-7 if self.two_sided else cos_l > 1e-7
-        pdf = d2 / np.maximum(np.abs(cos_l), 1e-12) / _per_row(self.tri_area, slot, one)
-        if len(near):
-            pdf = pdf.astype(np.float64)
-            pdf[near] = 1.0 / omega[near]
-        pdf = np.where(visible_side, pdf, 0.0)
-        rad = _rows_where(visible_side, _per_row(self.tri_emission, slot, one))
-        if self.tri_textured is not None:
-            rows = np.nonzero(np.take(self.tri_textured, slot) & visible_side)[0]
-            if len(rows):
-                s = np.take(slot, rows)
-                bary = np.stack([np.take(b1, rows), np.take(b2, rows)], axis=1)
-                e = emission_at_points(self._scene, np.take(self.tri_index, s), gather(q, rows),
-                                       gather(self.tri_normal, s), -gather(wi, rows), bary)
-                rad = scatter(np.array(rad, np.float32), rows, e)
-        return wi, d.astype(np.float32), rad, pdf.astype(np.float32), np.zeros(len(li), bool)
+        return self.triangles.sample(li - self.n_analytic, p, u)
 
     def _sample_world(self, li, p, u, n=None):
         wi, pdf, rad = self.environment.sample(u, n)
@@ -383,15 +316,7 @@ class LightSet:
 
     def triangle_emission(self, prim, front):
         """Radiance leaving emissive triangles toward the ray that hit them."""
-        if not len(self.tri_index):
-            return np.zeros((len(prim), 1), np.float32)   # broadcasting zeros, as always
-        le = np.zeros((len(prim), 3), np.float32)
-        slot = np.take(self.tri_slot, prim)
-        lit = slot >= 0
-        if not self.two_sided:
-            lit &= front
-        rows = np.nonzero(lit)[0]      # usually few: fill only those (core/rows.py)
-        return scatter(le, rows, gather(self.tri_emission, np.take(slot, rows)))
+        return self.triangles.emitted(prim, front)
 
     def pdf_triangle(self, prim, p_ref, p_hit, wi):
         """NEE solid-angle pdf of having sampled the hit point on an emissive triangle."""
@@ -400,16 +325,7 @@ class LightSet:
         slot = np.take(self.tri_slot, prim)
         ok = slot >= 0
         s = np.maximum(slot, 0)
-        pmf = self.selection_pmf(self.n_analytic + s, p_ref)
-        to_q = p_hit - p_ref
-        d2 = dot(to_q, to_q)
-        cos_l = np.abs(dot(wi, gather(self.tri_normal, s)))
-        pdf = pmf * d2 / np.maximum(cos_l, 1e-12) / np.take(self.tri_area, s)
-        omega, near = spherical_triangle.large_solid_angles(
-            p_ref, gather(self.tri_p0, s), gather(self.tri_e1, s), gather(self.tri_e2, s))
-        if len(near):       # sampled by solid angle from there (_sample_triangle)
-            pdf = pdf.astype(np.float64)
-            pdf[near] = np.take(pmf, near) / omega[near]
+        pdf = self.selection_pmf(self.n_analytic + s, p_ref) * self.triangles.pdf(s, p_ref, p_hit, wi)
         return np.where(ok, pdf, 0.0).astype(np.float32)
 
     def pdf_world(self, d, n=None):
@@ -451,5 +367,5 @@ class LightSet:
                 slot = self._local_slot[li]
                 if slot < 0:
                     return table[li]
-                return self._p_local * self.grid.pmf(np.full(len(cells), slot), cells=cells)
+                return self._p_local * self.grid.pmf(np.full(len(cells), slot), o, cells)
         return self.analytic.emitted_along(o, d, tmax, pmf, pdf_bsdf, hidden)

@@ -47,6 +47,22 @@ def test_near_emitters_get_more_and_none_less_than_its_share():
     assert (pmf >= DEFENSIVE / 30 * (1 - 1e-9)).all()
 
 
+def test_a_point_beside_an_emitter_chooses_it_more_than_its_cell_does():
+    """Two points of one cell, 2 cm and 25 cm from the same small lamp: the
+    near one gives it over twice the probability (each point weighs its
+    cell's top clusters by its own distance), and both stay distributions."""
+    power = np.ones(30)
+    centre = np.stack([np.linspace(-3.8, 3.8, 30), np.zeros(30), np.full(30, 1.5)], 1)
+    grid = LightGrid((-4, -3, 0), (4, 3, 3), power, centre - 0.02, centre + 0.02)
+    lamp = 15
+    near = centre[lamp] + [0.0, 0.0, -0.04]
+    far = centre[lamp] + [0.0, 0.0, -0.25]
+    assert grid.cells(np.float32([near]))[0] == grid.cells(np.float32([far]))[0]
+    at = [grid.pmf(np.arange(30), np.repeat([q], 30, axis=0).astype(np.float32)) for q in (near, far)]
+    assert np.allclose([a.sum() for a in at], 1.0)
+    assert at[0][lamp] > 2 * at[1][lamp] and at[0][lamp] > 0.45      # the same under the cell alone
+
+
 def test_degenerate_layouts_stay_distributions(rng):
     for lo, hi, centre in [((0, 0, 0), (0, 0, 0), np.zeros((5, 3))),             # a point scene
                            ((-1, -1, 0), (1, 1, 0), rng.uniform(-1, 1, (9, 3))),  # flat
