@@ -1,6 +1,7 @@
 """Next-event estimation among many emitters: choosing them by power alone,
-by place (core/light_grid.py without cones), and by place and cone (the
-engine's choice).
+by place (core/light_grid.py without cones), by place and cone as the grid's
+cell alone sees them (``LOCAL`` 0), and by place and cone with each point's
+own share among its cell's top clusters (the engine's choice).
 
 Two scenes built in code, each with its shading points:
 
@@ -85,17 +86,19 @@ def sample_ms(ls, rng):
 
 
 def main():
-    facing = light_grid._facing
+    facing, local = light_grid._facing, light_grid.LOCAL
     choices = {
         "power alone": lambda ls: setattr(ls, "grid", None),
         "place": lambda ls: None,
+        "place and cone, by cell": lambda ls: None,
         "place and cone": lambda ls: None,
     }
     print("| scene | choice | rel. variance, floor | rel. variance, walls | ms per 57,600 samples |")
     print("|---|---|---:|---:|---:|")
     for name, build in (("small emitters", small_emitters), ("downlights", downlights)):
         for choice, apply in choices.items():
-            light_grid._facing = facing if choice == "place and cone" else (lambda *a, **k: 1.0)
+            light_grid._facing = facing if choice.startswith("place and cone") else (lambda *a, **k: 1.0)
+            light_grid.LOCAL = 0.0 if choice.endswith("by cell") else local
             rng = np.random.default_rng(1)
             ls = LightSet(build(rng))
             apply(ls)
@@ -104,7 +107,7 @@ def main():
             a = relative_variance(ls, floor, np.float64([0, 0, 1]), rng)
             b = relative_variance(ls, walls, np.float64([1, 0, 0]), rng)
             print(f"| {name} | {choice} | {a:.2f} | {b:.2f} | {sample_ms(ls, rng):.1f} |")
-    light_grid._facing = facing
+    light_grid._facing, light_grid.LOCAL = facing, local
 
 
 if __name__ == "__main__":
