@@ -66,7 +66,8 @@ def relative_variance(ls, points, normal, rng):
     out = []
     for p in points:
         P = np.repeat([p], SAMPLES, axis=0).astype(np.float32)
-        s = ls.sample(P, rng.random(SAMPLES, dtype=np.float32), rng.random((SAMPLES, 2), dtype=np.float32))
+        N = np.repeat([normal], SAMPLES, axis=0).astype(np.float32)
+        s = ls.sample(P, rng.random(SAMPLES, dtype=np.float32), rng.random((SAMPLES, 2), dtype=np.float32), N)
         cos = np.maximum(s.wi.astype(np.float64) @ normal, 0.0)
         e = np.where(s.pdf > 0, s.radiance.mean(axis=1) * cos / np.where(s.pdf > 0, s.pdf, 1.0), 0.0)
         if e.mean() > 0:

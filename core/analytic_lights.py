@@ -290,7 +290,7 @@ class AnalyticLights:
     def emitted_along(self, o, d, tmax, pmf, pdf_bsdf=None, hidden=None):
         """Radiance of the analytic lights crossed by rays o + t d, 0 < t < tmax,
         weighted against NEE by the power heuristic (pmf: each light's selection
-        probability, or a function of the light giving it per ray). pdf_bsdf
+        probability, or pmf(light, rows) giving it at those rays). pdf_bsdf
         None means camera rays: weight one, and only lights marked
         camera_visible. hidden: (L, N) or (L, 1) bool, the rays each light is
         hidden from."""
@@ -305,7 +305,10 @@ class AnalyticLights:
                 continue
             if hidden is not None and hidden[li].all():
                 continue
-            pmf_li = pmf(li) if callable(pmf) else pmf[li]
+            # Selection probability: the geometry's factor below, times the
+            # emitter's probability at the rows that see it (a callable
+            # pmf(li, rows) is evaluated there only).
+            pmf_li = 1.0 if callable(pmf) else pmf[li]
             if kind == LIGHT_AREA:
                 nrm = lt.direction[li]
                 den = matmul3(d, nrm)
@@ -356,7 +359,10 @@ class AnalyticLights:
                 w = np.ones(len(rows), np.float32)
             else:
                 pb = pdf_bsdf if np.ndim(pdf_bsdf) == 0 else np.take(pdf_bsdf, rows)
-                w = power_heuristic(pb, np.take(pdf_light, rows))
+                pl = np.take(pdf_light, rows)
+                if callable(pmf):
+                    pl = pl * pmf(li, rows)
+                w = power_heuristic(pb, pl)
             if hidden is not None and hidden[li].any():
                 w = w * ~np.take(np.broadcast_to(hidden[li], (n,)), rows)
             scatter_add(total, rows, (np.broadcast_to(le, (len(rows), 3)) * w[:, None]).astype(np.float32))

@@ -118,10 +118,6 @@ class LightGrid:
         by_power = cluster_power / total if total > 0 else np.full(k, 1.0 / k)
         norm = importance.sum(axis=1, keepdims=True)
         near = np.where(norm > 0, importance / np.where(norm > 0, norm, 1.0), by_power[None])
-        # The cell's own part holds the defensive share of power, so that
-        # with the point's part (LOCAL) every cluster keeps DEFENSIVE x power.
-        power_share = DEFENSIVE / (1.0 - LOCAL)
-        self.cell_pmf = (1.0 - power_share) * near + power_share * by_power[None]     # (C, K)
         # Per point: its importance of the cell's TOP clusters, from a table
         # per cell (C, 5, T) of their centres, half-diagonals squared and
         # powers (float32, one gather a point).
@@ -134,6 +130,13 @@ class LightGrid:
         # a cell's points weigh its clusters differently enough to pay for it.
         nearest = np.take_along_axis((gap * gap).sum(axis=2), self.top, axis=1).min(axis=1)
         self._near_cell = nearest < 0.25 * float((cell_size ** 2).sum())
+        # Power's share of the cell's own choice: DEFENSIVE, and in cells
+        # where points take LOCAL by their own importance, as much more as
+        # keeps every cluster DEFENSIVE x power over both parts (a cell
+        # without that part choosing with the larger share was flatter:
+        # bench/light_selection.py floors 0.24 -> 0.41).
+        share = np.where(self._near_cell, DEFENSIVE / (1.0 - LOCAL), DEFENSIVE)[:, None]
+        self.cell_pmf = (1.0 - share) * near + share * by_power[None]     # (C, K)
         # Worth its cost where some cell's choice differs from power's by
         # more than USEFUL in total variation (not so for one lamp's
         # triangles, or lamps far from everything).
@@ -189,14 +192,16 @@ class LightGrid:
                 out += index
         return out
 
-    def local_importance(self, p, cells):
+    def local_importance(self, p, cells, n=None):
         """Importance at points p of their cells' top clusters, for the points
         whose cell has an emitter within about a cell of it (elsewhere a
         point weighs them as its cell does, and the cell alone chooses):
         (rows, top (R, T) clusters, importance (R, T), total (N,) each
         point's sum, zero for the others). Importance: power over the
         squared distance to the cluster's centre plus its half-diagonal
-        squared, times the cone's orientation bound."""
+        squared, times the cone's orientation bound and, with the points'
+        unit normals n, the bound of the cosine at the receiving surface
+        (either side of it: glass takes light from behind)."""
         rows = np.nonzero(np.take(self._near_cell, cells))[0]
         total = np.zeros(len(cells), np.float32)
         if len(rows) == len(cells):
@@ -204,24 +209,33 @@ class LightGrid:
         q, c = p[rows], cells[rows]
         table = np.take(self._top_table, c, axis=0)        # (R, 5, T)
         d2 = np.zeros(table.shape[::2], np.float32)
+        along = None if n is None else np.zeros_like(d2)    # n . (centre - p)
         for axis in range(3):
             d = np.subtract(table[:, axis], q[:, axis:axis + 1], dtype=np.float32)
+            if along is not None:
+                along += d * n[rows, axis:axis + 1]
             d *= d
             d2 += d
+        if along is not None:
+            cos_r = _receiver_bound(along, d2, table[:, 3])
         d2 += table[:, 3]
         imp = np.divide(table[:, 4], d2, out=d2, where=d2 > 0)
+        if along is not None:
+            imp *= cos_r
         top = np.take(self.top, c, axis=0)
         if self._cone is not None:
             imp *= np.asarray(_facing(self._cone, q.astype(np.float64)[:, None, :], 0.0, top), np.float32)
         total[rows] = imp.sum(axis=1)
         return (np.arange(len(cells)) if isinstance(rows, slice) else rows), top, imp, total
 
-    def sample(self, p, u):
-        """(emitter index (N,), its probability (N,)) for points p and uniform u (N,)."""
+    def sample(self, p, u, n=None):
+        """(emitter index (N,), its probability (N,)) for points p, uniform u
+        (N,) and, if given, the points' unit normals n (N, 3), which pmf must
+        then be given too."""
         if self._prob is None:
             self._tables()
         cell = self.cells(p)
-        rows, top, imp, total = self.local_importance(p, cell)
+        rows, top, imp, total = self.local_importance(p, cell, n)
         u = np.asarray(u, np.float64)
         # Rows below LOCAL (with some importance) choose among their top
         # clusters by it, the others by the cell's table; either way the
@@ -270,15 +284,32 @@ class LightGrid:
             pmf[r] = LOCAL * mine + (1.0 - LOCAL) * pmf[r]
         return pmf
 
-    def pmf(self, light, p, cells=None):
+    def pmf(self, light, p, cells=None, n=None):
         """Probability (N,) of choosing emitters ``light`` (N,) at points p (N, 3)
-        (cells: their cells, if known)."""
+        (cells: their cells, if known; n: their normals, as sample had them)."""
         if self._prob is None:
             self._tables()
         if cells is None:
             cells = self.cells(p)
         cluster = np.take(self.cluster_of, light)
-        return self._pmf(cells, cluster, *self.local_importance(p, cells)) * np.take(self.within, light)
+        return self._pmf(cells, cluster, *self.local_importance(p, cells, n)) * np.take(self.within, light)
+
+
+def _receiver_bound(along, d2, r2):
+    """Largest |cos| between a normal and any direction into a sphere of
+    squared radius r2 whose centre lies at squared distance d2, along the
+    normal by ``along`` (arrays of one shape, float32): 1 within the sphere
+    or where it spans the normal's direction, else cos(phi - theta_u), phi
+    the angle from the nearer of +-n to the centre and sin(theta_u) = r / d."""
+    with np.errstate(invalid="ignore", divide="ignore"):
+        inv = 1.0 / np.sqrt(d2)
+        cos_phi = np.minimum(np.abs(along) * inv, 1.0)
+        sin_phi = np.sqrt(np.maximum(1.0 - cos_phi * cos_phi, 0.0))
+        sin_u = np.minimum(np.sqrt(r2) * inv, 1.0)
+        cos_u = np.sqrt(np.maximum(1.0 - sin_u * sin_u, 0.0))
+        bound = cos_phi * cos_u + sin_phi * sin_u
+    # Inside the sphere, or the normal's direction within it (phi < theta_u).
+    return np.where((d2 > r2) & (cos_phi < cos_u), bound, 1.0).astype(np.float32)
 
 
 def _cluster_cones(axis, spread, start, c_lo, c_hi):
@@ -288,10 +319,10 @@ def _cluster_cones(axis, spread, start, c_lo, c_hi):
     box's centre and half-diagonal."""
     omni = spread >= np.pi
     unit = axis / np.maximum(np.linalg.norm(axis, axis=1, keepdims=True), 1e-30)
+    cluster = np.repeat(np.arange(len(start)), np.diff(np.r_[start, len(axis)]))
     mean = np.add.reduceat(np.where(omni[:, None], 0.0, unit), start, axis=0)
     length = np.linalg.norm(mean, axis=1, keepdims=True)
     mean = mean / np.maximum(length, 1e-30)
-    cluster = np.repeat(np.arange(len(start)), np.diff(np.r_[start, len(axis)]))
     off = np.arccos(np.clip((unit * mean[cluster]).sum(axis=1), -1.0, 1.0))
     off = np.where(omni, np.pi, off)
     theta_o = np.maximum.reduceat(off, start)
@@ -312,8 +343,7 @@ def _facing(cone, at, at_reach, top=None):
     is (N, 1, 3) and the result (N, T)."""
     mean, theta_o, theta_e, lambertian, c_mid, c_reach = cone
     if top is not None:
-        mean, theta_o, theta_e, lambertian, c_mid, c_reach = (
-            np.take(a, top, axis=0) for a in (mean, theta_o, theta_e, lambertian, c_mid, c_reach))
+        mean, theta_o, theta_e, lambertian, c_mid, c_reach = (np.take(a, top, axis=0) for a in cone)
     else:
         at = at[:, None, :]
     reach = c_reach + at_reach

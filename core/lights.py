@@ -235,7 +235,7 @@ class LightSet:
     #
     # Rows are grouped by the routine that samples them (core/analytic_lights.py).
 
-    def _select(self, u_select, p):
+    def _select(self, u_select, p, n=None):
         """(index of the emitter each row at points p samples, its selection
         probability) (Distribution1D.sample_discrete without the re-stretched
         u, which sampling does not use)."""
@@ -249,7 +249,8 @@ class LightSet:
         near = u_select < self._p_local
         rows = np.nonzero(near)[0]
         if len(rows):
-            light, q = self.grid.sample(gather(p, rows), u_select[rows] / np.float64(self._p_local))
+            light, q = self.grid.sample(gather(p, rows), u_select[rows] / np.float64(self._p_local),
+                                        None if n is None else gather(n, rows))
             idx[rows] = self._local_ids[light]
             pmf[rows] = self._p_local * q
         rows = np.nonzero(~near)[0]
@@ -260,15 +261,17 @@ class LightSet:
             pmf[rows] = np.take(self.distribution.pmf, idx[rows])
         return idx, pmf
 
-    def selection_pmf(self, idx, p):
-        """Probability (N,) of NEE choosing emitters idx (N,) at points p (N, 3)."""
+    def selection_pmf(self, idx, p, n=None):
+        """Probability (N,) of NEE choosing emitters idx (N,) at points p (N, 3)
+        of unit normals n (N, 3), as sample() was given them."""
         pmf = np.take(self.distribution.pmf, idx)
         if self.grid is None:
             return pmf
         slot = np.take(self._local_slot, idx)
         rows = np.nonzero(slot >= 0)[0]
         if len(rows):
-            pmf[rows] = self._p_local * self.grid.pmf(np.take(slot, rows), gather(p, rows))
+            pmf[rows] = self._p_local * self.grid.pmf(np.take(slot, rows), gather(p, rows),
+                                                      n=None if n is None else gather(n, rows))
         return pmf
 
     def sample(self, p, u_select, u, n=None):
@@ -278,7 +281,7 @@ class LightSet:
         count = len(p)
         if self.count == 0 or count == 0:
             return LightSample(*_empty_sample(count))
-        idx, pmf = self._select(u_select, p)
+        idx, pmf = self._select(u_select, p, n)
         a = self.analytic
         routines = {_SPHERE: a.sample_sphere, _SUN: a.sample_sun, _AREA: a.sample_area,
                     _TRI: self._sample_triangle, _ENV: self._sample_world}
@@ -318,14 +321,15 @@ class LightSet:
         """Radiance leaving emissive triangles toward the ray that hit them."""
         return self.triangles.emitted(prim, front)
 
-    def pdf_triangle(self, prim, p_ref, p_hit, wi):
-        """NEE solid-angle pdf of having sampled the hit point on an emissive triangle."""
+    def pdf_triangle(self, prim, p_ref, p_hit, wi, n_ref=None):
+        """NEE solid-angle pdf of having sampled the hit point on an emissive
+        triangle from points p_ref of normals n_ref (as sample() had them)."""
         if not len(self.tri_index):
             return np.zeros(len(prim), np.float32)
         slot = np.take(self.tri_slot, prim)
         ok = slot >= 0
         s = np.maximum(slot, 0)
-        pdf = self.selection_pmf(self.n_analytic + s, p_ref) * self.triangles.pdf(s, p_ref, p_hit, wi)
+        pdf = self.selection_pmf(self.n_analytic + s, p_ref, n_ref) * self.triangles.pdf(s, p_ref, p_hit, wi)
         return np.where(ok, pdf, 0.0).astype(np.float32)
 
     def pdf_world(self, d, n=None):
@@ -347,12 +351,13 @@ class LightSet:
             return self.environment.camera_radiance(d)
         return self.environment.radiance(d)
 
-    def emitted_along(self, o, d, tmax, pdf_bsdf=None, kinds=None):
+    def emitted_along(self, o, d, tmax, pdf_bsdf=None, kinds=None, p=None, n=None):
         """Radiance of the analytic lights crossed by rays o + t d, 0 < t < tmax,
         weighted against NEE by the power heuristic. pdf_bsdf None means camera
         rays: weight one, and only lights marked camera_visible. kinds: each
         ray's kind of bounce (diffuse where None), which lights hidden from
-        it do not give."""
+        it do not give. p, n: the surface points the rays left and their
+        normals, as NEE sampled lights from them (p defaults to o)."""
         hidden = None
         if self.hidden_kinds is not None and pdf_bsdf is not None:
             lamps = self.hidden_kinds[:self.n_analytic]
@@ -360,12 +365,13 @@ class LightSet:
                 hidden = lamps[:, 0:1] if kinds is None else lamps[:, kinds]     # (L, N)
         pmf = self.distribution.pmf
         if self.grid is not None and (self._local_slot[:self.n_analytic] >= 0).any():
-            cells = self.grid.cells(o)
+            at = o if p is None else p
             table = pmf
 
-            def pmf(li):            # (N,) for lamps the grid chooses, a number for the others
+            def pmf(li, rows):      # at the rays that cross lamp li
                 slot = self._local_slot[li]
                 if slot < 0:
                     return table[li]
-                return self._p_local * self.grid.pmf(np.full(len(cells), slot), o, cells)
+                return self._p_local * self.grid.pmf(np.full(len(rows), slot), gather(at, rows),
+                                                      n=None if n is None else gather(n, rows))
         return self.analytic.emitted_along(o, d, tmax, pmf, pdf_bsdf, hidden)

@@ -63,6 +63,27 @@ def test_a_point_beside_an_emitter_chooses_it_more_than_its_cell_does():
     assert at[0][lamp] > 2 * at[1][lamp] and at[0][lamp] > 0.45      # the same under the cell alone
 
 
+def test_a_point_gives_little_to_lamps_at_grazing_angles_to_its_surface(rng):
+    """With its normal, a floor point weighs a lamp level with it far below
+    one overhead at the same distance, and sampling with normals follows the
+    probabilities given the same normals."""
+    power = np.ones(3)
+    centre = np.float64([[0.3, 0.0, 0.05], [0.0, 0.3, 0.05], [0.0, 0.0, 0.3]])
+    grid = LightGrid((-4, -3, 0), (4, 3, 3), power, centre - 0.01, centre + 0.01)
+    p = np.zeros((3, 3), np.float32)
+    up = np.repeat([[0.0, 0.0, 1.0]], 3, axis=0).astype(np.float32)
+    with_n = grid.pmf(np.arange(3), p, n=up)
+    without = grid.pmf(np.arange(3), p)
+    assert np.isclose(with_n.sum(), 1.0) and np.isclose(without.sum(), 1.0)
+    assert with_n[2] > 2 * with_n[0] and without[2] < 1.2 * without[0]     # half goes by the cell
+    count = 100_000
+    light, q = grid.sample(np.zeros((count, 3), np.float32), rng.random(count),
+                           np.repeat(up[:1], count, axis=0))
+    assert np.allclose(q, with_n[light])
+    p_value, *_ = pooled_chi2(np.bincount(light, minlength=3), with_n * count)
+    assert p_value > 0.001
+
+
 def test_degenerate_layouts_stay_distributions(rng):
     for lo, hi, centre in [((0, 0, 0), (0, 0, 0), np.zeros((5, 3))),             # a point scene
                            ((-1, -1, 0), (1, 1, 0), rng.uniform(-1, 1, (9, 3))),  # flat

@@ -87,8 +87,8 @@ def radiance_from_surface(ctx, surf, seeds, bounce0, max_bounces, frame=None, co
             else ctx.accel.intersect_closest(o, wi)
         # Emission found by the BSDF rays, each weighted against NEE.
         if ctx.lights.n_analytic and ctx.lights.analytic.crossable():
-            scatter_add(L, alive, gather(beta, keep) * ctx.lights.emitted_along(o, wi, hits.t, pdf_bsdf=pdf,
-                                                                               kinds=kinds))
+            scatter_add(L, alive, gather(beta, keep) * ctx.lights.emitted_along(
+                o, wi, hits.t, pdf_bsdf=pdf, kinds=kinds, p=gather(surf.p, keep), n=gather(surf.ns, keep)))
         miss = np.nonzero(~hits.hit)[0]
         if len(miss) and ctx.lights.environment is not None:
             # n: the normal NEE sampled a constant world about.
@@ -105,7 +105,8 @@ def radiance_from_surface(ctx, surf, seeds, bounce0, max_bounces, frame=None, co
             emissive = np.nonzero(row_max(le) > 0)[0]
             if len(emissive):
                 pdf_l = ctx.lights.pdf_triangle(surf.prim[emissive], gather(prev.p, rows[emissive]),
-                                                gather(surf.p, emissive), -gather(surf.wo, emissive))
+                                                gather(surf.p, emissive), -gather(surf.wo, emissive),
+                                                gather(prev.ns, rows[emissive]))
                 w = power_heuristic(pdf[emissive], pdf_l)
                 scatter_add(L, alive[emissive], scale(gather(beta, emissive) * gather(le, emissive), w))
         if track and len(alive):

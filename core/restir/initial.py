@@ -199,13 +199,15 @@ def initial_samples(ctx, gb, seed, frame, sample, max_bounces, sampling=COSINE, 
     # triangles), weighted against the same NEE (lights' selection).
     if lights.n_analytic:
         scatter_add(d, rows, weight_r * lights.emitted_along(o, wi_r, hits.t, pdf_bsdf=pdf[rows] / countf[rows],
-                                                             kinds=None if kinds is None else kinds[rows]))
+                                                             kinds=None if kinds is None else kinds[rows],
+                                                             p=gather(surf.p, rows), n=gather(surf.ns, rows)))
     surf2, hit_idx = surface_hits(scene, o, wi_r, hits)
     rows2 = rows[hit_idx]
     if len(lights.tri_index) or materials.shading(scene).emitting:
         le = materials.surface_emission(scene, surf2, lights)
         if (row_max(le) > 0).any():
-            pdf_l = lights.pdf_triangle(surf2.prim, gather(surf.p, rows2), surf2.p, -surf2.wo)
+            pdf_l = lights.pdf_triangle(surf2.prim, gather(surf.p, rows2), surf2.p, -surf2.wo,
+                                        gather(surf.ns, rows2))
             scatter_add(d, rows2, scale(gather(weight, rows2) * le,
                                         power_heuristic(pdf[rows2], pdf_l * countf[rows2])))
     scatter(direct, index, d)
