@@ -133,12 +133,13 @@ def test04_next_event_estimation_in_an_emitting_box(rng, monkeypatch):
     e, s = _irradiance_over_pi(lights, p, nrm, rng)
     assert e.mean() == pytest.approx(1.0, abs=4.5 * e.std() / np.sqrt(N))
     # The pdf NEE reports for its sample is what pdf_triangle gives the same
-    # point found by a BSDF ray (multiple importance sampling needs both).
+    # point found by a BSDF ray from the same point and normal (multiple
+    # importance sampling needs both).
     ok = np.nonzero(s.pdf > 0)[0][:20000]
     slot = s.index[ok] - lights.n_analytic
     prim = lights.tri_index[slot]
     q = p[ok] + s.wi[ok] * s.dist[ok][:, None]
-    again = lights.pdf_triangle(prim, p[ok], q, s.wi[ok])
+    again = lights.pdf_triangle(prim, p[ok], q, s.wi[ok], nrm[ok])
     assert np.allclose(again, s.pdf[ok], rtol=2e-3)
     monkeypatch.setattr(st, "MIN_SOLID_ANGLE", np.inf)
     area, _ = _irradiance_over_pi(lights, p, nrm, rng)
