@@ -29,7 +29,7 @@ from .gbuffer import FirstPass, FrameImage, trace_rows
 from .initial import COSINE, initial_samples
 from .shading import carried_visibility, shade_indirect
 from .shift import target_at
-from .spatial import reuse_weights, spatial_resample
+from .spatial import shared_terms, spatial_resample
 from .silhouettes import refine_edges
 from .temporal import FrameHistory, ObjectMotion, carry_with_objects, reproject, temporal_resample
 from .validation import validate
@@ -287,7 +287,7 @@ class ReSTIRGI:
         # the same as with a carried M capped at 5, fireflies gone.
         cap = settings.spatial_M_cap
         carry = settings.spatial and biased and history is not None and bool((prev_pix >= 0).any())
-        lum_wm = reuse_weights(temporal) if settings.spatial else None
+        shared = shared_terms(temporal, biased) if settings.spatial else None
         prev_acc = None
         if accumulating and history is not None and history.accumulation is not None:
             prev_acc = history.accumulation
@@ -315,7 +315,7 @@ class ReSTIRGI:
                     prev_owner = gather(history.owners(spatial=True), q)
                 spatial, visible_own, from_prev = spatial_resample(
                     ctx, img, temporal, prev_spatial, prev_owner, seeds, settings.spatial_neighbors,
-                    settings.spatial_radius, biased, rows=(a, b), lum_wm=lum_wm)
+                    settings.spatial_radius, biased, rows=(a, b), shared=shared)
                 if carry and static and visible_own is None:
                     known = carried_visibility(np.take(history.visibility, q), from_prev, prev_owner,
                                                img.p[a:b], spatial.x2)

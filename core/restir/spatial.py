@@ -31,8 +31,19 @@ def reuse_weights(temporal):
                     0.0).astype(np.float32)
 
 
+def sample_luminance(temporal):
+    """luminance(Lo) of every temporal reservoir's sample (0 without one)."""
+    return np.where(temporal.has_sample, target(temporal.lo), 0.0).astype(np.float32)
+
+
+def shared_terms(temporal, biased):
+    """The per-image values spatial_resample reads at neighbours, computed once
+    for all workers: reuse_weights (biased) or sample_luminance (unbiased)."""
+    return reuse_weights(temporal) if biased else sample_luminance(temporal)
+
+
 def spatial_resample(ctx, gb, temporal, prev_spatial, prev_owner_p, seeds, k, radius, biased,
-                     rows=None, lum_wm=None):
+                     rows=None, shared=None):
     """Spatial reservoirs of this frame; (unbiased mode) the visibility of each
     pixel's chosen sample from its own visible point, for final shading; and
     where the chosen sample is last frame's spatial reservoir's.
@@ -41,8 +52,8 @@ def spatial_resample(ctx, gb, temporal, prev_spatial, prev_owner_p, seeds, k, ra
     worker's share), whose own arrays are sliced from the whole-image inputs;
     neighbours come from the whole image. prev_spatial and prev_owner_p (last
     frame's spatial reservoirs reprojected, and their visible points) are
-    given for those rows only. lum_wm: reuse_weights(temporal), if the caller
-    has it (workers share one)."""
+    given for those rows only. shared: shared_terms(temporal, biased), if the
+    caller has it (workers share one)."""
     a, b = rows if rows is not None else (0, len(gb.valid))
     w, h = gb.width, gb.height
     p_all, nrm_all, ng_all = gb.p, gb.n, gb.ng
@@ -70,9 +81,10 @@ def spatial_resample(ctx, gb, temporal, prev_spatial, prev_owner_p, seeds, k, ra
 
     px, py = (pix % w).astype(np.float32), (pix // w).astype(np.float32)
     # Neighbours' reservoirs enter through their sample point, its normal and
-    # luminance(Lo) W M: gathered per neighbour, the rest only for the winners.
-    if lum_wm is None:
-        lum_wm = reuse_weights(temporal)
+    # luminance(Lo) W M (biased) or luminance(Lo) and W (unbiased): gathered
+    # per neighbour, the rest only for the winners.
+    if shared is None:
+        shared = shared_terms(temporal, biased)
     for i in range(k):
         ctx.accel.poll()
         u = samplers.uniform2(seeds, D_SPATIAL + 2 + 3 * i)
@@ -88,14 +100,14 @@ def spatial_resample(ctx, gb, temporal, prev_spatial, prev_owner_p, seeds, k, ra
         p_nb = gather(p_all, nb)
         m = np.where(ok, np.take(temporal.M, nb), 0.0).astype(np.float32)
         if biased:
-            weight = shift_weight_of(gather(temporal.x2, nb), temporal.field("ng2", nb), np.take(lum_wm, nb),
+            weight = shift_weight_of(gather(temporal.x2, nb), temporal.field("ng2", nb), np.take(shared, nb),
                                      p_nb, p, ng, nrm, biased)
             weight *= ok
         else:
             weight = None       # pairwise MIS weights, below, once every neighbour is known
         candidates.append((temporal, nb, weight, m, p_nb, None if biased else gather(ng_all, nb), nrm_nb, p_nb))
     if not biased:
-        _pairwise_weights(ctx, temporal, own, candidates, p, ng, nrm)
+        targets = _pairwise_weights(ctx, temporal, shared, own, candidates, p, ng, nrm)
 
     choice, w_sum = choose([c[2] for c in candidates], samplers.uniform(seeds, D_SPATIAL))
     # The winners' samples: one gather from the temporal reservoirs (own row or
@@ -123,12 +135,15 @@ def spatial_resample(ctx, gb, temporal, prev_spatial, prev_owner_p, seeds, k, ra
     res.M[:] = sum(c[3] for c in candidates)
 
     own_visible = None
-    p_hat = target_at(res, p, ng, nrm)
     if biased:
-        finalize(res, p_hat)
+        finalize(res, target_at(res, p, ng, nrm))
     else:
-        # The weights are MIS weights already: W = w_sum / p_hat. A sample
-        # chosen has a non-zero weight, so its pixel sees it (traced above).
+        # The weights are MIS weights already: W = w_sum / p_hat, with p_hat
+        # the chosen candidate's target here (found above, visibility
+        # included). A sample chosen has a non-zero weight, so its pixel sees it.
+        p_hat = np.zeros(n, np.float32)
+        for c, t in enumerate(targets):
+            np.copyto(p_hat, t, where=choice == c)
         finalize(res, p_hat, np.ones(n, np.float32))
         own_visible = choice >= 0
         # res.M stays the sum of the candidates' M: a confidence that does not
@@ -136,10 +151,12 @@ def spatial_resample(ctx, gb, temporal, prev_spatial, prev_owner_p, seeds, k, ra
     return res, own_visible, from_prev
 
 
-def _pairwise_weights(ctx, temporal, own, candidates, p, ng, nrm):
+def _pairwise_weights(ctx, temporal, lum, own, candidates, p, ng, nrm):
     """Unbiased resampling weights of the own (canonical) reservoir and the
     k neighbours' (candidates[0] and candidates[1:], weights set in place) by
-    pairwise MIS (Bitterli 2022, ch. 9.1.3, with confidence weights M).
+    pairwise MIS (Bitterli 2022, ch. 9.1.3, with confidence weights M); lum:
+    sample_luminance(temporal). Returns each candidate's target at the
+    receiver, visibility included.
 
     Each pair of the canonical reservoir c and a neighbour i is a balance
     heuristic of two techniques, the canonical one standing for M_c / k
@@ -170,28 +187,29 @@ def _pairwise_weights(ctx, temporal, own, candidates, p, ng, nrm):
     terms = []
     with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
         for _src, nb, _w, m_i, p_nb, ng_nb, ns_nb, _from in candidates[1:]:
-            y = temporal.view(nb)
-            lum_i = np.where(y.has_sample, target(y.lo), 0.0).astype(np.float32)
+            x2_i, lum_i = temporal.field("x2", nb), np.take(lum, nb)
             # The neighbour's sample here (J: its shift from there to here) ...
-            pc_i, j_ic = shift_target(y.x2, y.ng2, lum_i, p_nb, p, ng, nrm)
+            pc_i, j_ic = shift_target(x2_i, temporal.field("ng2", nb), lum_i, p_nb, p, ng, nrm)
             pc_i = np.where(m_i > 0, pc_i, 0.0)
             # ... at its own visible point (found from there: seen) ...
-            to = y.x2 - p_nb
+            to = x2_i - p_nb
             cos_i = np.maximum(dot(to, ns_nb), 0.0) / np.sqrt(np.maximum(dot(to, to), 1e-30))
             n_i = m_i * lum_i * cos_i / np.where(j_ic > 0, j_ic, 1.0)
             # ... and the canonical sample at the neighbour's visible point.
             pi_c, j_ci = shift_target(own.x2, own.ng2, lum_c, p, p_nb, ng_nb, ns_nb)
             pi_c = np.where((m_i > 0) & (pc_c > 0), pi_c, 0.0)
-            rays.add(p, ng, y.x2, pc_i > 0)
+            rays.add(p, ng, x2_i, pc_i > 0)
             rays.add(p_nb, ng_nb, own.x2, pi_c > 0)
-            terms.append((m_i, y.W, pc_i, j_ic, n_i, pi_c * j_ci))
+            terms.append((m_i, temporal.field("W", nb), pc_i, j_ic, n_i, pi_c * j_ci))
         seen = rays.trace()
         pc_c = np.where(seen[0], pc_c, 0.0).astype(np.float32)
         c_c = share * pc_c
         own_mis = np.zeros(len(p), np.float32)
+        targets = [pc_c]
         for i, (m_i, w_i, pc_i, j_ic, n_i, pi_c) in enumerate(terms, 1):
             s_i = (m_i + share) / np.maximum(m_tot, 1e-30)
             pc_i = np.where(seen[2 * i - 1], pc_i, 0.0)
+            targets.append(pc_i)
             c_i = share * pc_i
             m_mis = np.where(c_i > 0, s_i * n_i / (n_i + c_i), 0.0)
             candidates[i] = candidates[i][:2] + ((m_mis * pc_i * w_i * j_ic).astype(np.float32),) \
@@ -200,6 +218,7 @@ def _pairwise_weights(ctx, temporal, own, candidates, p, ng, nrm):
             own_mis += np.where(c_c > 0, s_i * c_c / (c_c + m_i * pi_c), 0.0).astype(np.float32)
         own_w = np.where(own.W > 0, own_mis * pc_c * own.W, 0.0)
     candidates[0] = candidates[0][:2] + (own_w.astype(np.float32),) + candidates[0][3:]
+    return targets
 
 
 class _RayBatch:
