@@ -12,6 +12,7 @@ from .camera import PixelFilter
 from .film import Film
 from .integrators.path import camera_pass
 from .parallel import Continuation, concat_rows, release_free_memory
+from .restir import BIASED
 from .restir.accumulation import STILL
 
 
@@ -80,9 +81,24 @@ def render_frame(ctx, settings, frame=0, on_sample=None, should_stop=None):
 
 
 def settle_frames(frames):
-    """Frames of a fresh start left out of a still's mean: the first frames'
-    reservoirs hold few samples, and their noise would dominate the mean."""
+    """Frames of a fresh start left out of a biased still's mean: the first
+    frames' reservoirs hold few samples, and their noise would dominate the
+    mean. From there on a still's frames use still_temporal_M_cap."""
     return min(frames // 4, 8)
+
+
+# An unbiased still keeps every frame, the first ones weighted less: frame i
+# of a fresh start weighs min(1, (i + 1) / STILL_RAMP_FRAMES) in the mean.
+# Every frame is an unbiased estimate, and one frame's variance falls as its
+# reservoirs fill, to about its final value within a few frames (courtyard,
+# frames 0, 1, 2 and 15 of 16: 1.9x, 1.3x, 1.2x and 1x; room 4.6x, 1.9x,
+# 1.5x, 1x): these weights are about the inverse of those variances.
+STILL_RAMP_FRAMES = 4
+
+
+def still_frame_weight(i):
+    """Weight of frame i of an unbiased fresh start in the running means."""
+    return min(1.0, (i + 1) / STILL_RAMP_FRAMES)
 
 
 def render_restir(ctx, restir, settings, frame, frames=1, fresh=False, on_frame=None, should_stop=None):
@@ -91,15 +107,18 @@ def render_restir(ctx, restir, settings, frame, frames=1, fresh=False, on_frame=
     random numbers; on_frame(i, result) follows every frame.
 
     fresh: the reservoirs start empty (a still, or the first frame of an
-    animation). The image is then the mean of every frame after the first
-    settle_frames(frames), so a still gets cleaner as ``frames`` grows (and in
-    the unbiased mode converges to the path-traced image). Otherwise each
-    pixel's running mean keeps at most ``settings.accumulate`` frames.
+    animation). The image is then the mean of the frames: in the unbiased
+    mode of every frame, weighted by still_frame_weight; in the biased mode
+    of every frame after the first settle_frames(frames). A still gets
+    cleaner as ``frames`` grows (and in the unbiased mode converges to the
+    path-traced image). Otherwise each pixel's running mean keeps at most
+    ``settings.accumulate`` frames.
     With ``restir.keep_history`` False the state is let go at the end."""
     run = settings
     if fresh and settings.accumulate > 1:
         run = dataclasses.replace(settings, accumulate=STILL)
     settle = settle_frames(frames) if fresh else 0
+    ramp = fresh and settings.mode != BIASED and settings.accumulate > 1
     result = None
     scene = ctx.scene
     # The twin process (core/forked.py) goes on into the next frame's loop of
@@ -113,7 +132,8 @@ def render_restir(ctx, restir, settings, frame, frames=1, fresh=False, on_frame=
             if lead and should_stop is not None and should_stop():
                 break
             if i == settle and i > 0:
-                restir.restart_accumulation()
+                if not ramp:
+                    restir.restart_accumulation()
                 # The mean of the frames converges as fast as they are independent;
                 # reservoirs that keep a sample for up to temporal_M_cap frames make
                 # neighbouring frames alike. Unbiased stills, 64 warm-up frames,
@@ -122,7 +142,9 @@ def render_restir(ctx, restir, settings, frame, frames=1, fresh=False, on_frame=
                 # lit through openings 3-4 % higher.
                 run = dataclasses.replace(run, temporal_M_cap=min(run.temporal_M_cap,
                                                                   settings.still_temporal_M_cap))
-            result = restir.render_frame(ctx, run, frame * 65536 + i)
+            weight = still_frame_weight(i) if ramp else 1.0
+            this = run if weight == run.frame_weight else dataclasses.replace(run, frame_weight=weight)
+            result = restir.render_frame(ctx, this, frame * 65536 + i)
             if lead and on_frame is not None:
                 on_frame(i, result)
         else:

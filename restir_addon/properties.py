@@ -36,8 +36,9 @@ class RestirGISceneSettings(bpy.types.PropertyGroup):
     warmup_frames: IntProperty(
         name="Warm-up Frames",
         description="ReSTIR GI: frames of resampling run on the still scene for a still render or "
-                    "the first frame of an animation; the image is their mean once the first quarter "
-                    "(at most 8) has filled the reservoirs",
+                    "the first frame of an animation; the image is their mean (the first frames, "
+                    "while the reservoirs fill, weigh less in the unbiased mode and are left out "
+                    "in the biased one)",
         default=32, min=1, soft_max=128, max=4096,
     )
     chunk_warmup_frames: IntProperty(

@@ -14,7 +14,7 @@ import pytest
 
 from core import Materials, RenderContext, RenderSettings, render_frame
 from core.camera import PixelFilter
-from core.render import render_restir, settle_frames
+from core.render import render_restir, settle_frames, still_frame_weight
 from core.restir import BIASED, UNBIASED, ReSTIRGI, ReSTIRSettings
 from core.restir.accumulation import STILL, Footprint, accumulate, previous_pixels
 from core.restir.gbuffer import trace_gbuffer
@@ -143,13 +143,20 @@ def test04_running_mean_and_its_cap():
     half.weights[:, :2] = 0.5
     mid = accumulate(acc, half, values[0], values[0], values[0], values[0], cap=2)
     assert np.allclose(mid.direct[:-1, 0], 0.5 * (np.arange(n - 1) + 0.5) + 0.5)
+    # Weighted frames (an unbiased still's first ones): the weighted mean, the
+    # count summing the weights.
+    acc, weights = None, (0.25, 0.5, 1.0, 1.0)
+    for k, (v, wt) in enumerate(zip(values, weights)):
+        acc = accumulate(acc, same if acc is not None else None, v, v, v, v, cap=STILL, weight=wt)
+        expect = np.dot(weights[:k + 1], [x[0, 0] for x in values[:k + 1]]) / sum(weights[:k + 1])
+        assert np.allclose(acc.direct, expect) and np.allclose(acc.count, sum(weights[:k + 1]))
 
 
 # --- (2) estimators ----------------------------------------------------------------------
 
 def test05_unbiased_still_matches_path_tracing(ctx, reference):
-    """A still in the unbiased mode (mean of the warm-up frames after the
-    first settle_frames) has the path tracer's mean, with the filter on."""
+    """A still in the unbiased mode (the mean of its warm-up frames, the first
+    ones weighted less) has the path tracer's mean, with the filter on."""
     runs = []
     for r in range(40):
         out = render_restir(ctx, ReSTIRGI(), ReSTIRSettings(mode=UNBIASED, seed=2000 + r, max_bounces=MAX_BOUNCES),
@@ -186,9 +193,11 @@ def test07_still_error_falls_as_warmup_grows(ctx, reference, mode):
     assert long < 0.5 * short
 
 
-def test08_settle_frames():
+def test08_settle_frames_and_still_weights():
     assert settle_frames(1) == 0 and settle_frames(16) == 4 and settle_frames(400) == 8
     assert STILL > 1e6
+    w = [still_frame_weight(i) for i in range(8)]
+    assert w[0] > 0 and all(a <= b for a, b in zip(w, w[1:])) and w[-1] == 1.0
 
 
 def test09_accumulation_off_gives_the_frame():

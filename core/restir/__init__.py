@@ -81,6 +81,8 @@ class ReSTIRSettings:
                                     # silhouettes (silhouettes.py; 1 turns it off)
     accumulate: int = 16            # frames in each pixel's running mean (accumulation.py);
                                     # 1 turns it off, accumulation.STILL averages every frame
+    frame_weight: float = 1.0       # this frame's weight in the running means, in frames
+                                    # (an unbiased still's first frames weigh less: core/render.py)
 
 
 @dataclass
@@ -344,7 +346,7 @@ class ReSTIRGI:
             rows = accumulate(prev_acc, footprint, direct_total, indirect, one.albedo[a:b], img.n[a:b],
                               settings.accumulate, one.alpha[a:b], seen,
                               None if refined is None else refined.rows(a, b),
-                              None if gate is None else gate.rows(a, b)).data
+                              None if gate is None else gate.rows(a, b), settings.frame_weight).data
             shaded[a:b] = rows
             color = rows[:, 0:3] + rows[:, 3:6] + rows[:, 14:17]
             spent("shading", t)

@@ -290,10 +290,11 @@ def _catmull_rom(t):
 
 
 def accumulate(prev, footprint, direct, indirect, albedo, normal, cap, alpha=1.0, seen=0.0, refined=None,
-               direct_range=None):
+               direct_range=None, weight=1.0):
     """This frame's Accumulation: the history over ``footprint`` (rows of the
     part) blended with this frame's values, over at most ``cap`` frames.
-    prev: last frame's Accumulation (whole image) or None.
+    prev: last frame's Accumulation (whole image) or None. weight: this
+    frame's weight in the mean, in frames (the count column sums them).
 
     refined: silhouettes.RefinedSeen of the part's rows, or None. The
     radiance seen directly (seen) of its ``own`` pixels (the brightest
@@ -320,7 +321,7 @@ def accumulate(prev, footprint, direct, indirect, albedo, normal, cap, alpha=1.0
     often lies below their mean); a neighbourhood that agrees is neither."""
     n = len(direct)
     new = np.empty((n, COLUMNS), np.float32)
-    new[:, 0:3], new[:, 3:6], new[:, 6:9], new[:, 9:12], new[:, 12] = direct, indirect, albedo, normal, 1.0
+    new[:, 0:3], new[:, 3:6], new[:, 6:9], new[:, 9:12], new[:, 12] = direct, indirect, albedo, normal, weight
     new[:, 13] = alpha
     new[:, 14:17] = seen
     if prev is None or cap <= 1 or footprint is None:
@@ -371,9 +372,9 @@ def accumulate(prev, footprint, direct, indirect, albedo, normal, cap, alpha=1.0
         away = (hi - lo <= GATE_RELATIVE * hi) & ((m - hi > GATE_RELATIVE * m) | (lo - m > GATE_RELATIVE * lo))
         hist[away] = new[away]
         hist[away, 12] = 0.0
-    count = np.minimum(hist[:, 12], cap - 1) + 1
+    count = np.minimum(hist[:, 12], cap - weight) + weight
     hist -= new
-    hist *= (1.0 - 1.0 / count)[:, None]        # = old + (new - old) / count
+    hist *= (1.0 - weight / count)[:, None]     # = old + (new - old) weight / count
     hist += new
     hist[:, 12] = count
     return Accumulation(hist)
