@@ -24,16 +24,17 @@ from .temporal import DEPTH_REL_MAX, NORMAL_COS_MIN
 D_SPATIAL = 1000            # first sampler dimension of the spatial pass
 
 
-def reuse_weights(temporal):
-    """luminance(Lo) W M of every temporal reservoir (0 without a sample): the
-    part of a neighbour's resampling weight that does not depend on the receiver."""
-    return np.where(temporal.has_sample, target(temporal.lo) * temporal.W * temporal.M,
-                    0.0).astype(np.float32)
-
-
 def sample_luminance(temporal):
     """luminance(Lo) of every temporal reservoir's sample (0 without one)."""
     return np.where(temporal.has_sample, target(temporal.lo), 0.0).astype(np.float32)
+
+
+def reuse_weights(temporal):
+    """luminance(Lo) W M of every temporal reservoir (0 without a sample): the
+    part of a neighbour's resampling weight that does not depend on the receiver."""
+    w = sample_luminance(temporal) * temporal.W
+    w *= temporal.M
+    return w
 
 
 def shared_terms(temporal, biased):
