@@ -50,3 +50,21 @@ def reports(addon, monkeypatch):
     (addon_util.capture_reports)."""
     from addon_util import capture_reports
     return capture_reports(addon, monkeypatch)
+
+
+@pytest.fixture
+def vp(addon):
+    """The add-on's viewport module (restir_addon/viewport.py)."""
+    return addon.restir_addon.viewport
+
+
+@pytest.fixture
+def recorder(addon):
+    """A depsgraph_update_post handler that records ``depsgraph.updates``
+    (blender_util.Recorder), removed afterwards."""
+    import bpy
+    from blender_util import Recorder
+    rec = Recorder()
+    yield rec
+    if rec in bpy.app.handlers.depsgraph_update_post:
+        bpy.app.handlers.depsgraph_update_post.remove(rec)

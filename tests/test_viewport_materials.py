@@ -3,7 +3,7 @@ colour attributes, normal-map tangents), as the final render does."""
 
 import numpy as np
 
-from test_viewport import build_scene, new_session, step, vp  # noqa: F401 (fixture)
+from viewport_util import build_scene, new_session, step
 
 
 def test_viewport_reads_colour_attributes_and_tangents(vp):  # noqa: F811
