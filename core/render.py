@@ -27,16 +27,31 @@ class RenderSettings:
 CHUNK_PIXELS = 1 << 16     # pixels per batch: bounds memory and the latency of a cancel
 
 
-def path_trace_pixels(ctx, seed, frame, sample, max_bounces, pixel_filter, start, stop):
+def path_trace_pixels(ctx, seed, frame, sample, max_bounces, pixel_filter, start, stop, samples=1):
     """One path-traced sample of the pixels [start, stop), split over the
-    context's workers (PassResult of those rows)."""
+    context's workers (PassResult of those rows). With ``samples`` k > 1,
+    samples ``sample`` .. ``sample + k - 1`` of the whole image in one batch
+    (start and stop then index its k x P rows: row r is pixel r mod P of
+    sample ``sample + r // P``)."""
     w, h = ctx.scene.width, ctx.scene.height
+    n = w * h
 
     def part(lo, hi):
-        return camera_pass(ctx, w, h, seed, frame, sample, max_bounces, pixel_filter,
-                           pixels=np.arange(start + lo, start + hi))
+        rows = np.arange(start + lo, start + hi)
+        if samples == 1:
+            return camera_pass(ctx, w, h, seed, frame, sample, max_bounces, pixel_filter, pixels=rows)
+        return camera_pass(ctx, w, h, seed, frame, sample + rows // n, max_bounces, pixel_filter,
+                           pixels=rows % n)
 
     return concat_rows(ctx.workers.map(part, stop - start))
+
+
+def samples_per_pass(pixels, samples):
+    """Samples traced in one batch for an image of ``pixels`` pixels: as many
+    as fit in CHUNK_PIXELS rows. A pass pays a fixed cost in Python calls per
+    bounce whatever its size, and a small image alone would not fill both
+    workers (a 64x64 render: 128 samples 3x faster in batches of 16)."""
+    return max(1, min(samples, CHUNK_PIXELS // max(pixels, 1)))
 
 
 def render_frame(ctx, settings, frame=0, on_sample=None, should_stop=None):
@@ -57,18 +72,34 @@ def render_frame(ctx, settings, frame=0, on_sample=None, should_stop=None):
     # (core/scene_patch.py).
     keep = Continuation(lambda: _continuation_token(ctx), (ctx,), _resume_path, (scene.camera, settings, frame),
                         patch=lambda state, token: _patch(state[0], ctx, token))
-    with ctx.workers.twin(n, keep) as lead:
-        for s in range(settings.samples):
+    batch = samples_per_pass(n, settings.samples)
+    with ctx.workers.twin(n * batch, keep) as lead:
+        done = 0
+        while done < settings.samples:
+            k = min(batch, settings.samples - done)
+            if lead and should_stop is not None and should_stop():
+                return film
+            if k > 1:       # several samples of a small image in one batch
+                res = path_trace_pixels(ctx, settings.seed, frame, done, settings.max_bounces,
+                                        pixel_filter, 0, n * k, samples=k)
+                for j in range(k):
+                    rows = slice(j * n, (j + 1) * n)
+                    film.add(res.color[rows], depth=res.depth[rows], normal=res.normal[rows],
+                             albedo=res.albedo[rows], alpha=res.alpha[rows])
+                    if lead and on_sample is not None:
+                        on_sample(film, time.perf_counter() - start)
+                done += k
+                continue
             color = np.zeros((n, 3), np.float32)
             depth = np.zeros(n, np.float32)
             normal = np.zeros((n, 3), np.float32)
             albedo = np.zeros((n, 3), np.float32)
             alpha = np.zeros(n, np.float32)
             for a in range(0, n, CHUNK_PIXELS):
-                if lead and should_stop is not None and should_stop():
+                if a > 0 and lead and should_stop is not None and should_stop():
                     return film
                 chunk = min(CHUNK_PIXELS, n - a)
-                res = path_trace_pixels(ctx, settings.seed, frame, s, settings.max_bounces,
+                res = path_trace_pixels(ctx, settings.seed, frame, done, settings.max_bounces,
                                         pixel_filter, a, a + chunk)
                 rows = slice(a, a + chunk)
                 color[rows], depth[rows], normal[rows], albedo[rows] = res.color, res.depth, res.normal, res.albedo
@@ -76,6 +107,7 @@ def render_frame(ctx, settings, frame=0, on_sample=None, should_stop=None):
             film.add(color, depth=depth, normal=normal, albedo=albedo, alpha=alpha)
             if lead and on_sample is not None:
                 on_sample(film, time.perf_counter() - start)
+            done += 1
         keep.complete = True
     return film
 

@@ -141,19 +141,20 @@ def test07_restir_frames_of_a_twin_loop_are_those_of_one_process(contexts, mode)
 
 
 def test08_path_tracing_progress_and_stop_are_the_leaders():
-    """on_sample reports from the parent only, and a stop there ends the loop."""
+    """on_sample reports from the parent only, and a stop there ends the loop
+    (polled between batches: 96x96 traces 7 samples to a batch)."""
     scene = cornell_box("area", 96, 96)
     ctx = RenderContext.build(scene, threads=2)
     try:
         reports = []
-        film = render_frame(ctx, RenderSettings(samples=6, max_bounces=2, seed=1),
+        film = render_frame(ctx, RenderSettings(samples=20, max_bounces=2, seed=1),
                             on_sample=lambda film, s: reports.append(os.getpid()),
-                            should_stop=lambda: len(reports) >= 3)
-        assert reports == [os.getpid()] * 3 and film.count == 3
+                            should_stop=lambda: len(reports) >= 7)
+        assert reports == [os.getpid()] * 7 and film.count == 7
         assert forked.active() is None
         alone = RenderContext.build(scene, threads=1)
         try:
-            three = render_frame(alone, RenderSettings(samples=3, max_bounces=2, seed=1))
+            three = render_frame(alone, RenderSettings(samples=7, max_bounces=2, seed=1))
         finally:
             alone.close()
         assert np.array_equal(film.mean(), three.mean())

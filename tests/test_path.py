@@ -237,3 +237,36 @@ def test12_pixel_positions_over_samples_are_spread():
     assert (np.abs(sixteen.mean(axis=0) - one.mean(axis=0))[edges] <= 4.5 * se + 1e-9).all()
     ratio = sixteen.var(axis=0, ddof=1)[edges].sum() / iid[edges].sum()
     assert ratio < 0.6, ratio       # measured 0.39 (independent positions: 1)
+
+
+def test13_small_images_trace_several_samples_per_pass():
+    """A small image's samples are traced several to a batch (fewer passes,
+    both workers busy), with the same paths: the film equals one pass per
+    sample, bit for bit, on one worker and on two, including a last batch
+    that is not full (64x64: 16 samples to a batch, 20 = 16 + 4)."""
+    from core.render import samples_per_pass
+    scene = cornell_box(light="area", width=64, height=64)
+    assert samples_per_pass(64 * 64, 20) == 16 and samples_per_pass(320 * 180, 20) == 1
+    per_sample = path_samples(scene, 20, 2, seed=3).reshape(20, -1, 3).mean(axis=0)
+    for threads in (1, 2):
+        ctx = RenderContext.build(scene, threads=threads)
+        try:
+            seen = []
+            film = render_frame(ctx, RenderSettings(samples=20, max_bounces=2, seed=3),
+                                on_sample=lambda f, _: seen.append(f.count))
+        finally:
+            ctx.close()
+        assert seen == list(range(1, 21))
+        assert np.array_equal(film.mean().reshape(-1, 3), per_sample.astype(np.float32)), threads
+
+
+def test14_a_cancel_keeps_the_samples_of_the_batches_done():
+    scene = cornell_box(light="area", width=64, height=64)
+    ctx = RenderContext.build(scene, threads=1)
+    polls = []
+    try:
+        film = render_frame(ctx, RenderSettings(samples=40, max_bounces=1, seed=0),
+                            should_stop=lambda: polls.append(1) or len(polls) > 1)
+    finally:
+        ctx.close()
+    assert film.count == 16 and np.isfinite(film.mean()).all() and film.mean().max() > 0
