@@ -260,11 +260,14 @@ class DynamicAccel:
         if self.interrupt is not None and self.interrupt():
             raise TraceInterrupted()
 
-    def intersect_closest(self, origins, directions, tmax=None, camera=False):
+    def _query(self, origins, directions):
+        """(start time, origins, directions) of a query, after the interrupt poll."""
         self.poll()
-        t0 = time.perf_counter()
-        o = np.asarray(origins, np.float32).reshape(-1, 3)
-        d = np.asarray(directions, np.float32).reshape(-1, 3)
+        return (time.perf_counter(), np.asarray(origins, np.float32).reshape(-1, 3),
+                np.asarray(directions, np.float32).reshape(-1, 3))
+
+    def intersect_closest(self, origins, directions, tmax=None, camera=False):
+        t0, o, d = self._query(origins, directions)
         n = len(o)
         if self._static is None:
             return RayHits(np.full(n, np.inf, np.float32), np.full(n, -1, np.int32),
@@ -291,10 +294,7 @@ class DynamicAccel:
         return RayHits(t, prim, u, v)
 
     def occluded(self, origins, directions, tmax):
-        self.poll()
-        t0 = time.perf_counter()
-        o = np.asarray(origins, np.float32).reshape(-1, 3)
-        d = np.asarray(directions, np.float32).reshape(-1, 3)
+        t0, o, d = self._query(origins, directions)
         n = len(o)
         if self._static is None:
             return np.zeros(n, bool)

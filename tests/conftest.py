@@ -68,3 +68,17 @@ def recorder(addon):
     yield rec
     if rec in bpy.app.handlers.depsgraph_update_post:
         bpy.app.handlers.depsgraph_update_post.remove(rec)
+
+
+@pytest.fixture
+def ng(addon):
+    """The add-on's node graph exporter (restir_addon/export/node_graph.py)."""
+    from node_graph_util import modules
+    return modules(addon)[0]
+
+
+@pytest.fixture
+def Link(addon):
+    """core.shader.graph.Link as the registered add-on has it."""
+    from node_graph_util import modules
+    return modules(addon)[2].Link

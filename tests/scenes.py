@@ -1,8 +1,11 @@
-"""Small scenes built in code for the core tests (no Blender)."""
+"""Small scenes built in code for the core tests (no Blender), and every
+path's colour of one (path_samples)."""
 
 import numpy as np
 
-from core import Camera, Lights, Materials, make_scene
+from core import Camera, Lights, Materials, RenderContext, make_scene
+from core.camera import PixelFilter
+from core.integrators.path import camera_pass
 from core.scene import LIGHT_AREA, LIGHT_POINT
 
 
@@ -133,3 +136,15 @@ def glow_by_wall(width=24, height=24):
                                 {"base_color": (0, 0, 0), "emission": (12.0, 10.0, 8.0)}])
     cam = Camera(to_world=look_at((0.3, -1.2, 0.2), (0, 0.5, 0)), lens=50.0, sensor_width=36.0)
     return make_scene(*b.arrays(), mats, Lights.empty(), cam, width=width, height=height)
+
+
+def path_samples(scene, samples, max_bounces, seed=0):
+    """Every path's colour, (samples * pixels, 3) float64, from camera_pass."""
+    ctx = RenderContext.build(scene)
+    pf = PixelFilter(scene.filter_width)
+    try:
+        out = [camera_pass(ctx, scene.width, scene.height, seed, 0, s, max_bounces, pf).color
+               for s in range(samples)]
+    finally:
+        ctx.close()
+    return np.concatenate(out).astype(np.float64)

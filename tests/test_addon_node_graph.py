@@ -12,19 +12,8 @@ import os
 import tempfile
 from types import SimpleNamespace
 
-import pytest
-from node_graph_util import (approx, assert_topological, find, graph_of, group_node, kinds, modules,
-                             new_group, new_material)
-
-
-@pytest.fixture
-def ng(addon):
-    return modules(addon)[0]
-
-
-@pytest.fixture
-def Link(addon):
-    return modules(addon)[2].Link
+from node_graph_util import (approx, assert_topological, find, graph_of, group_node, kinds, new_group,
+                             new_material)
 
 
 # ---------------------------------------------------------------- single nodes

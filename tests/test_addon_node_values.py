@@ -4,18 +4,7 @@ settings, Color Ramp and curve tables, the Texture Coordinate's object, and
 constants converted between socket types as Blender converts them.
 """
 
-import pytest
 from node_graph_util import approx, find, graph_of, modules, new_material
-
-
-@pytest.fixture
-def ng(addon):
-    return modules(addon)[0]
-
-
-@pytest.fixture
-def Link(addon):
-    return modules(addon)[2].Link
 
 
 def test01_conversions(addon):

@@ -10,13 +10,12 @@ import numpy as np
 import pytest
 
 from chi2 import ChiSquareTest, Domain, integrate, spherical_domain
-from core import Camera, Materials, RenderContext, make_scene
-from core.camera import PixelFilter
+from core import Camera, Materials, make_scene
 from core.environment import Environment, direction_to_uv, uv_to_direction
-from core.integrators.path import camera_pass, escaped_radiance
+from core.integrators.path import escaped_radiance
 from core.lights import INF_DIST, LightSet
 from core.sampling import power_heuristic, square_to_cosine_hemisphere
-from scenes import Builder, look_at, quad
+from scenes import Builder, look_at, path_samples, quad
 
 N = 400_000
 UP = np.array([0.0, 0.0, 1.0])
@@ -252,17 +251,6 @@ def lit_plane(environment=None, world_color=(0, 0, 0), albedo=(0.5, 0.5, 0.5), s
                        world_color=world_color, width=size, height=size)
     scene.environment = environment
     return scene
-
-
-def path_samples(scene, samples, max_bounces, seed=0):
-    ctx = RenderContext.build(scene)
-    pf = PixelFilter(scene.filter_width)
-    try:
-        out = [camera_pass(ctx, scene.width, scene.height, seed, 0, s, max_bounces, pf).color
-               for s in range(samples)]
-    finally:
-        ctx.close()
-    return np.concatenate(out).astype(np.float64)
 
 
 def irradiance(fn, n=UP):

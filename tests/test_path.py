@@ -7,10 +7,8 @@ import numpy as np
 import pytest
 
 from core import Camera, Lights, Materials, RenderContext, RenderSettings, make_scene, render_frame
-from core.camera import PixelFilter
-from core.integrators.path import camera_pass
 from core.scene import LIGHT_AREA, LIGHT_POINT, LIGHT_SUN
-from scenes import Builder, cornell_box, furnace, look_at, quad, tilted_emitter
+from scenes import Builder, cornell_box, furnace, look_at, path_samples, quad, tilted_emitter
 
 
 def render(scene, samples, max_bounces, seed=0, frame=0):
@@ -19,18 +17,6 @@ def render(scene, samples, max_bounces, seed=0, frame=0):
         return render_frame(ctx, RenderSettings(samples=samples, max_bounces=max_bounces, seed=seed), frame)
     finally:
         ctx.close()
-
-
-def path_samples(scene, samples, max_bounces, seed=0):
-    """Every path's colour, (samples * pixels, 3) float64, from camera_pass."""
-    ctx = RenderContext.build(scene)
-    pf = PixelFilter(scene.filter_width)
-    try:
-        out = [camera_pass(ctx, scene.width, scene.height, seed, 0, s, max_bounces, pf).color
-               for s in range(samples)]
-    finally:
-        ctx.close()
-    return np.concatenate(out).astype(np.float64)
 
 
 def assert_mean(values, expected, z=4.5, rel=1e-5):
