@@ -79,35 +79,29 @@ def render_frame(ctx, settings, frame=0, on_sample=None, should_stop=None):
             k = min(batch, settings.samples - done)
             if lead and should_stop is not None and should_stop():
                 return film
-            if k > 1:       # several samples of a small image in one batch
-                res = path_trace_pixels(ctx, settings.seed, frame, done, settings.max_bounces,
-                                        pixel_filter, 0, n * k, samples=k)
-                for j in range(k):
-                    rows = slice(j * n, (j + 1) * n)
-                    film.add(res.color[rows], depth=res.depth[rows], normal=res.normal[rows],
-                             albedo=res.albedo[rows], alpha=res.alpha[rows])
-                    if lead and on_sample is not None:
-                        on_sample(film, time.perf_counter() - start)
-                done += k
-                continue
-            color = np.zeros((n, 3), np.float32)
-            depth = np.zeros(n, np.float32)
-            normal = np.zeros((n, 3), np.float32)
-            albedo = np.zeros((n, 3), np.float32)
-            alpha = np.zeros(n, np.float32)
-            for a in range(0, n, CHUNK_PIXELS):
+            # k samples of the image are k x n rows (one batch when k > 1,
+            # CHUNK_PIXELS-row chunks of one sample when the image is large)
+            rows_total = n * k
+            color = np.zeros((rows_total, 3), np.float32)
+            depth = np.zeros(rows_total, np.float32)
+            normal = np.zeros((rows_total, 3), np.float32)
+            albedo = np.zeros((rows_total, 3), np.float32)
+            alpha = np.zeros(rows_total, np.float32)
+            for a in range(0, rows_total, CHUNK_PIXELS):
                 if a > 0 and lead and should_stop is not None and should_stop():
                     return film
-                chunk = min(CHUNK_PIXELS, n - a)
+                b = min(a + CHUNK_PIXELS, rows_total)
                 res = path_trace_pixels(ctx, settings.seed, frame, done, settings.max_bounces,
-                                        pixel_filter, a, a + chunk)
-                rows = slice(a, a + chunk)
-                color[rows], depth[rows], normal[rows], albedo[rows] = res.color, res.depth, res.normal, res.albedo
-                alpha[rows] = res.alpha
-            film.add(color, depth=depth, normal=normal, albedo=albedo, alpha=alpha)
-            if lead and on_sample is not None:
-                on_sample(film, time.perf_counter() - start)
-            done += 1
+                                        pixel_filter, a, b, samples=k)
+                color[a:b], depth[a:b], normal[a:b], albedo[a:b] = res.color, res.depth, res.normal, res.albedo
+                alpha[a:b] = res.alpha
+            for j in range(k):
+                rows = slice(j * n, (j + 1) * n)
+                film.add(color[rows], depth=depth[rows], normal=normal[rows], albedo=albedo[rows],
+                         alpha=alpha[rows])
+                if lead and on_sample is not None:
+                    on_sample(film, time.perf_counter() - start)
+            done += k
         keep.complete = True
     return film
 
