@@ -20,7 +20,7 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from bench_common import ROOT, export_blend, load_addon  # noqa: E402
 
-PASSES = ("gbuffer", "initial", "temporal", "spatial", "shading", "validation", "total")
+PASSES = ("gbuffer", "initial", "temporal", "spatial", "glossy", "shading", "validation", "total")
 
 
 def main():

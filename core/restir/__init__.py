@@ -26,6 +26,7 @@ from .accumulation import (COLUMNS, Accumulation, accumulate, geometric_edges, l
 from .adaptive_direct import light_sample_counts, reprojected_hold, update_noise_hold
 from .boiling import boiling_filter
 from .gbuffer import FirstPass, FrameImage, trace_rows
+from .glossy_reuse import GlossySamples, reuse_glossy
 from .initial import COSINE, initial_samples
 from .shading import carried_visibility, shade_indirect
 from .shift import target_at
@@ -81,6 +82,8 @@ class ReSTIRSettings:
                                     # silhouettes (silhouettes.py; 1 turns it off)
     accumulate: int = 16            # frames in each pixel's running mean (accumulation.py);
                                     # 1 turns it off, accumulation.STILL averages every frame
+    glossy_reuse: bool = True       # the glossy lobe's light from each pixel's and its
+                                    # neighbours' samples (glossy_reuse.py)
     frame_weight: float = 1.0       # this frame's weight in the running means, in frames
                                     # (an unbiased still's first frames weigh less: core/render.py)
 
@@ -137,7 +140,7 @@ class ReSTIRGI:
     def render_frame(self, ctx, settings, frame):
         """One frame. Afterwards ``last_timings`` holds seconds per pass: wall
         time for 'validation' and 'total', and for the passes the workers run
-        ('gbuffer', 'initial', 'temporal', 'spatial', 'shading') the sum over
+        ('gbuffer', 'initial', 'temporal', 'spatial', 'glossy', 'shading') the sum over
         workers, i.e. what they would take on one thread."""
         try:
             return self._render_frame(ctx, settings, frame)
@@ -149,7 +152,7 @@ class ReSTIRGI:
     def _render_frame(self, ctx, settings, frame):
         t_start = time.perf_counter()
         timings = {"gbuffer": 0.0, "validation": 0.0, "initial": 0.0, "temporal": 0.0,
-                   "spatial": 0.0, "shading": 0.0}
+                   "spatial": 0.0, "glossy": 0.0, "shading": 0.0}
         lock = threading.Lock()
 
         def spent(name, t0):
@@ -229,7 +232,9 @@ class ReSTIRGI:
             counts = light_sample_counts(part.index, prev, hold, settings.light_samples)
             # Initial samples (several per pixel are streamed into one reservoir).
             initial, direct, glossy = initial_samples(ctx, part, settings.seed, frame, 0,
-                                                      settings.max_bounces, settings.initial_sampling, counts)
+                                                      settings.max_bounces, settings.initial_sampling, counts,
+                                                      own_surface_glossy=not path_reuse)
+            reused = GlossySamples.of_range(part, initial) if path_reuse else None
             for s in range(1, max(1, settings.samples)):
                 extra, d, g = initial_samples(ctx, part, settings.seed, frame, s, settings.max_bounces,
                                               settings.initial_sampling, counts)
@@ -249,14 +254,18 @@ class ReSTIRGI:
             spent("temporal", t)
             return FirstPass(part.valid, part.depth, part.object_id, part.p, part.n, part.ng, part.albedo,
                              direct, luminance(direct).astype(np.float32), part.emission, glossy, diffuse,
-                             alpha, keep, prev.astype(np.int32), hold, temporal)
+                             alpha, keep, prev.astype(np.int32), hold, temporal, reused)
 
         # The first pass's colours and factors go into the columns of the
         # array that the second pass turns into this frame's running means
         # (accumulation.COLUMNS), each range reading and then overwriting its
         # own rows: no whole-image arrays of their own.
         shaded = np.empty((n, COLUMNS), np.float32)
-        one = ctx.workers.map_into(new_samples, n, out=FirstPass.allocate(n, shaded, history is not None))
+        # Objects hidden from some kinds of rays: the shadow rays of path reuse
+        # would not know which kind they stand for.
+        path_reuse = settings.glossy_reuse and not getattr(ctx.accel, "per_kind_visibility", False)
+        one = ctx.workers.map_into(new_samples, n, out=FirstPass.allocate(
+            n, shaded, history is not None, GlossySamples.allocate(n) if path_reuse else None))
         prev_pix, temporal = one.prev_pix, one.temporal
         t = time.perf_counter()
         refined = refine_edges(ctx, settings.seed, frame, pixel_filter, one.seen, one.lum_direct,
@@ -333,6 +342,11 @@ class ReSTIRGI:
                 spatial.clear(visibility < 0)
             direct_total, seen = one.direct[a:b], one.seen[a:b]
             indirect += one.glossy[a:b]     # the glossy lobe's light, from this frame's own samples
+            if one.glossy_samples is not None:  # ... and, on surfaces, its neighbours' (first sample)
+                t = spent("shading", t)
+                indirect += reuse_glossy(ctx, img, one.glossy_samples, a, b) \
+                    / np.float32(max(1, settings.samples))
+                t = spent("glossy", t)
             keep = one.keep[a:b].copy()
             if (keep < 1).any():    # Holdout: the pixel's share cut out, colour and all
                 direct_total, indirect, seen = scale(direct_total, keep), scale(indirect, keep), scale(seen, keep)

@@ -92,9 +92,10 @@ class FirstPass:
     prev_pix: np.ndarray    # (P,) int32 last frame's pixel (-1: no history)
     hold: np.ndarray        # (P,) int8 reprojected noise hold, or None
     temporal: object        # Reservoirs
+    glossy_samples: object = None   # GlossySamples (glossy_reuse.py), or None without path reuse
 
     @staticmethod
-    def allocate(n, shaded, with_hold):
+    def allocate(n, shaded, with_hold, glossy_samples=None):
         """Whole-image arrays for n pixels, the colours and factors in the
         columns of ``shaded`` (P, COLUMNS): direct 0:3, glossy 3:6, albedo
         6:9 and seen 14:17 where the running means (accumulation.py) will
@@ -104,7 +105,8 @@ class FirstPass:
                          vec(), shaded[:, 6:9], shaded[:, 0:3], np.empty(n, np.float32),
                          shaded[:, 14:17], shaded[:, 3:6],
                          shaded[:, 9:12], shaded[:, 13], shaded[:, 12], np.empty(n, np.int32),
-                         np.empty(n, np.int8) if with_hold else None, Reservoirs.empty(0).whole_image(n))
+                         np.empty(n, np.int8) if with_hold else None, Reservoirs.empty(0).whole_image(n),
+                         glossy_samples)
 
 
 @dataclass

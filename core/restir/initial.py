@@ -108,18 +108,34 @@ def _bsdf_sampled(params):
     return glossy
 
 
+def path_reused(params):
+    """Visible points whose glossy lobe's light path reuse may estimate
+    (glossy_reuse.py): no glass or sheen lobe, whose samplers it does not model."""
+    takes = np.ones(len(params.alpha), bool)
+    if params.has_glass:
+        takes &= params.p_glass <= 0
+    if params.has_sheen:
+        takes &= params.p_sheen <= 0
+    return takes
+
+
 def world_distance(scene):
     """Distance at which sky samples are placed: far beyond the scene."""
     return np.float32(1e4 * scene.extent())
 
 
-def initial_samples(ctx, gb, seed, frame, sample, max_bounces, sampling=COSINE, light_samples=1):
+def initial_samples(ctx, gb, seed, frame, sample, max_bounces, sampling=COSINE, light_samples=1,
+                    own_surface_glossy=True):
     """Reservoirs (one per pixel, empty where nothing was hit) holding each
     pixel's new sample; the direct light of each pixel (P, 3), estimated
     with ``light_samples`` NEE samples averaged (each keeps its one-sample MIS
     weight, so with the sample ray's own weight they still sum to one); and the
     indirect light of each pixel's glossy lobe (P, 3) from the sample's path.
-    light_samples: one count for all, or one per visible point (gb.index order)."""
+    light_samples: one count for all, or one per visible point (gb.index order).
+    own_surface_glossy False: the glossy light leaves out the samples on
+    surfaces that the specular lobes of the points path reuse takes drew
+    (glossy_reuse.py estimates those; sky samples stay, and so do those the
+    diffuse lobe drew)."""
     scene = ctx.scene
     n_pix = len(gb.valid)
     res = Reservoirs.empty(n_pix)
@@ -138,7 +154,9 @@ def initial_samples(ctx, gb, seed, frame, sample, max_bounces, sampling=COSINE, 
     wi_l = square_to_uniform_hemisphere(u) if sampling == UNIFORM else square_to_cosine_hemisphere(u)
     glossy = _bsdf_sampled(params)
     by_kind = getattr(ctx.accel, "per_kind_visibility", False)
-    want = by_kind or binding(max_bounces) or getattr(ctx.lights, "hidden_kinds", None) is not None
+    # Path reuse (own_surface_glossy False) reads which lobe drew each sample.
+    want = by_kind or binding(max_bounces) or getattr(ctx.lights, "hidden_kinds", None) is not None \
+        or not own_surface_glossy
     kinds = np.full(len(index), DIFFUSE, np.int8) if want else None
     if glossy.any():
         wi_b, _, _ = bsdf.sample(params.subset(glossy), wo_l[glossy], u_lobe[glossy], u[glossy])
@@ -230,6 +248,9 @@ def initial_samples(ctx, gb, seed, frame, sample, max_bounces, sampling=COSINE, 
         scatter(getattr(res, name), pix, value)
     res.prim2[pix], res.seed[pix], res.kind[pix] = surf2.prim, seeds[rows2], kind2
     lo_glossy = lo
+    if not own_surface_glossy:
+        reused = np.take(path_reused(params), rows2) & (kind2 == bsdf.KIND_GLOSSY)
+        lo_glossy = scale(lo, (~reused).astype(np.float32))
     # Rays that escaped sample the world: a far point in their direction whose
     # radiance is the world's (less NEE's share), so sky light is resampled
     # like any other. The glossy lobe takes the world's radiance by MIS.
@@ -240,7 +261,7 @@ def initial_samples(ctx, gb, seed, frame, sample, max_bounces, sampling=COSINE, 
         wi_m = gather(wi, miss)
         le = lights.world_radiance(wi_m)
         w_b = power_heuristic(pdf[miss], lights.pdf_world(wi_m, gather(surf.ns, miss)) * countf[miss])
-        lo_glossy = np.concatenate([lo, scale(le, w_b).astype(np.float32)])
+        lo_glossy = np.concatenate([lo_glossy, scale(le, w_b).astype(np.float32)])
         scatter(res.x2, pm, gather(surf.p, miss) + wi_m * far)
         for name in ("ng2", "n2", "wo2"):
             scatter(getattr(res, name), pm, -wi_m)
