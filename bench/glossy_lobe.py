@@ -4,9 +4,12 @@ lobe over neighbours could give (docs/plan.md, issue 9).
     .venv/bin/python bench/glossy_lobe.py [--scene glossy] [--seeds 4] [--lobe diffuse]
 
 split: one frame's variance (unbiased, Cycles' 12/4/4 bounces, temporal cap
-4, accumulation off, frame 12, over seeds) of the direct light, of the
-indirect light, and of the indirect light without the glossy lobe's own
-one-path term (initial.py returns it apart; here it is zeroed).
+4, accumulation off, frame 12, over seeds) of the direct light and of the
+indirect light, as rendered (the glossy lobe's light by path reuse over
+neighbours, core/restir/glossy_reuse.py), without path reuse (each pixel's
+own one-path estimate), and without the glossy lobe's light at all
+(initial.py's term zeroed, no reuse); with each one's median frame time and
+its glossy pass's (one worker).
 
 reuse: for the pixels with a glossy lobe, the glossy lobe's light from one
 frame's initial samples (sample points on surfaces; sky samples are left
@@ -37,30 +40,38 @@ NEIGHBOURS = {"4 at 3 px": [(-3, 0), (3, 0), (0, -3), (0, 3)],
 
 
 def split(ctx, seeds):
+    import time
+
     import restir_gi.core.restir as restir_mod
     from restir_gi.core.integrators.bounces import Bounces
     from restir_gi.core.restir import ReSTIRGI, ReSTIRSettings
     own = restir_mod.initial_samples
     out = {}
-    for label, zero in (("as rendered", False), ("without the glossy lobe's own term", True)):
+    for label, reuse_on, zero in (("as rendered (path reuse of the glossy lobe)", True, False),
+                                  ("without path reuse (own one-path estimate)", False, False),
+                                  ("without the glossy lobe's light", False, True)):
         if zero:
             def without_glossy(*a, **k):
                 res, direct, glossy = own(*a, **k)
                 return res, direct, glossy * 0
             restir_mod.initial_samples = without_glossy
-        frames = []
+        frames, times, glossy_times = [], [], []
         try:
             for seed in seeds:
                 restir = ReSTIRGI()
                 st = ReSTIRSettings(mode="RESTIR_UNBIASED", max_bounces=Bounces(12, 4, 4, 12), seed=seed,
-                                    accumulate=1, temporal_M_cap=4.0)
+                                    accumulate=1, temporal_M_cap=4.0, glossy_reuse=reuse_on)
                 for f in range(12):
+                    t = time.perf_counter()
                     r = restir.render_frame(ctx, st, 100 + f)
+                    times.append(time.perf_counter() - t)
+                    glossy_times.append(restir.last_timings["glossy"])
                 frames.append((r.direct @ LUM, r.indirect @ LUM))
         finally:
             restir_mod.initial_samples = own
         direct, indirect = (np.array([f[k] for f in frames]) for k in (0, 1))
-        out[label] = (float(direct.var(axis=0, ddof=1).mean()), float(indirect.var(axis=0, ddof=1).mean()))
+        out[label] = (float(direct.var(axis=0, ddof=1).mean()), float(indirect.var(axis=0, ddof=1).mean()),
+                      float(indirect.mean()), 1000 * float(np.median(times)), 1000 * float(np.median(glossy_times)))
     return out
 
 
@@ -165,10 +176,11 @@ def main():
     seeds = list(range(1, args.seeds + 1))
     try:
         print(f"corpus_{args.scene}.blend {scene.width}x{scene.height}, seeds {seeds}\n")
-        print("| one frame (frame 12) | variance of the direct light | of the indirect light |")
-        print("|---|---:|---:|")
-        for label, (vd, vi) in split(ctx, seeds).items():
-            print(f"| {label} | {vd:.4g} | {vi:.4g} |")
+        print("| one frame (frame 12) | variance of the direct light | of the indirect light | its mean "
+              "| frame ms | glossy pass ms |")
+        print("|---|---:|---:|---:|---:|---:|")
+        for label, (vd, vi, mi, t, tg) in split(ctx, seeds).items():
+            print(f"| {label} | {vd:.4g} | {vi:.4g} | {mi:.5g} | {t:.0f} | {tg:.0f} |")
         what = "diffuse lobe, initial samples" if args.lobe == "diffuse" else "glossy lobe, initial samples on surfaces"
         print(f"\n| {what} | pixels | variance | mean |")
         print("|---|---:|---:|---:|")
