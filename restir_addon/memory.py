@@ -29,8 +29,10 @@ BUDGET_SHARE = 0.6
 # grow with the image. bench/bench_memory.py --frames 3 measured 1.84 GB at
 # 1920x1080 and 4.90 GB at 3840x2160: 528 bytes per pixel between the two,
 # and 0.82 GB extrapolated to no pixels, Blender itself included
-# (docs/memory.md).
-RESTIR_BYTES_PER_PIXEL = 530
+# (docs/memory.md). Path reuse of the glossy lobe added 81 bytes per pixel of
+# a frame's temporaries (core/restir/glossy_reuse.py): 1.97 GB at 1920x1080
+# in the same run, 65 bytes per pixel more (3840x2160 not run again).
+RESTIR_BYTES_PER_PIXEL = 600
 RESTIR_FIXED_BYTES = 768 * 1024 ** 2
 # That figure is a measured peak, not a rough count as BYTES_PER_TRIANGLE is,
 # so the image may take a larger share of the available memory.
