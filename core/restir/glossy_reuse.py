@@ -15,7 +15,8 @@ d^2, Lo the path-traced radiance of y and q_i the share of the pixel's
 direction sampler that its specular lobe has toward y (the path tracer
 counts such a path's bounces as glossy; the share drawn by the diffuse lobe
 stays the pixel's own estimate, initial.py). Each receiver i estimates it
-from its own such sample and those of K neighbours j at fixed offsets, as
+from its own such sample and those of K neighbours j at fixed offsets (the
+four adjacent pixels), as
 sampling techniques of one integral, each of area density p_j(y) (the
 neighbour's specular lobe's density through the reconnection Jacobian,
 times the visibility of y from x1_j: a sampler reaches only what it sees,
@@ -47,9 +48,11 @@ from ..rows import gather, row_max, scale, scatter, scatter_add
 from ..sampling import INV_PI, dot, orthonormal_basis, to_local
 from .initial import path_reused
 
-# Neighbours 3 px away: 4 at 3 px lowered the glossy lobe's variance 3.3x,
-# 8 at 3-4 px 4.1x, 4 at 8 px 2.3x (bench/glossy_lobe.py, glossy interior).
-OFFSETS = ((-3, 0), (3, 0), (0, -3), (0, 3))
+# The 4 adjacent pixels. One frame's indirect variance on the glossy interior
+# (bench/glossy_lobe.py's split, one worker), none 0.333; 4 at 1 px 0.111,
+# 4 diagonal 0.115, 4 at 2 px 0.118, 4 at 3 px 0.130, for the same ~120 ms;
+# 8 at 1 px 0.086 and 8 at 3 px 0.111 for twice that: no better for the time.
+OFFSETS = ((-1, 0), (1, 0), (0, -1), (0, 1))
 
 
 @dataclass
