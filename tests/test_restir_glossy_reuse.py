@@ -167,3 +167,31 @@ def test06_frames_are_the_same_on_two_workers(threads):
     finally:
         serial.close()
         parallel.close()
+
+
+def test07_whole_frames_keep_the_mean_of_frames_without_reuse():
+    """Whole unbiased frames (temporal and spatial reuse, accumulation): the
+    same seeds with and without path reuse differ only in the glossy lobe's
+    estimate, and their mean does not change (paired z-tests on the image
+    and on blocks), while the metal's variance falls."""
+    c = RenderContext.build(metal_wall_scene(SIZE))
+    try:
+        out = {True: [], False: []}
+        for r in range(48):
+            for on in out:
+                restir = ReSTIRGI()
+                settings = ReSTIRSettings(mode=UNBIASED, seed=300 + r, max_bounces=MAX_BOUNCES, glossy_reuse=on)
+                for f in range(3):
+                    result = restir.render_frame(c, settings, f)
+                out[on].append(luminance(result.color))
+        on, off = (np.array(out[k], np.float64) for k in (True, False))
+        z_image = float(z_of_difference(on.sum(axis=1), off.sum(axis=1)))
+        z_blocks = z_of_difference(block_sums(on), block_sums(off))
+        summary = f"with {on.sum(axis=1).mean():.3f}, without {off.sum(axis=1).mean():.3f}, z = {z_image:.2f}; " \
+                  f"blocks z in [{z_blocks.min():.2f}, {z_blocks.max():.2f}]"
+        print(summary)
+        assert abs(z_image) < z_limit(1), summary
+        assert np.abs(z_blocks).max() < z_limit(len(z_blocks)), summary
+        assert on.var(axis=0).sum() < off.var(axis=0).sum()
+    finally:
+        c.close()
