@@ -385,3 +385,28 @@ def test11_validation_traces_shared_samples_once():
     shared = np.intersect1d(h.temporal.seed[h.temporal.prim2 >= 0], h.spatial.seed[h.spatial.prim2 >= 0])
     assert len(shared) > 0
     assert rays2 - rays1 < rays1 - rays0
+
+
+def test10_unbiased_merge_of_several_initial_samples_keeps_the_mean():
+    """A frame of several initial samples (settings.samples) streams them
+    into one reservoir of M candidates; the unbiased merge with the history
+    must weigh it by W = w_sum / (M p_hat), not count it M times (indirect
+    light 63 % too bright with two samples before)."""
+    from core import RenderSettings, render_frame
+    from core.sampling import luminance
+    from test_restir_world import SIZE, assert_same_mean
+    ctx = RenderContext.build(sharp(cornell_box("area", SIZE, SIZE)))
+    try:
+        film = render_frame(ctx, RenderSettings(samples=512, max_bounces=3, seed=0))
+        ref = (luminance(film.mean().reshape(-1, 3)).astype(np.float64),
+               film.variance_of_mean().reshape(-1).astype(np.float64))
+        out = []
+        for r in range(48):
+            restir = ReSTIRGI()
+            settings = ReSTIRSettings(mode=UNBIASED, seed=40 + r, max_bounces=3, samples=2, spatial=False)
+            for f in range(3):
+                result = restir.render_frame(ctx, settings, f)
+            out.append(luminance(result.color))
+        assert_same_mean(np.stack(out).astype(np.float64), ref, "two initial samples a frame, unbiased")
+    finally:
+        ctx.close()

@@ -234,7 +234,12 @@ def temporal_resample(initial, gb, history, prev_pix, u, M_cap, max_age, biased)
     share_new = 1.0 - _history_share(initial, owner, ng_h, ns_h, p, ng, ns, m_prev, initial.M)
     with np.errstate(invalid="ignore", divide="ignore"):
         w_prev = np.where(m_prev > 0, w_prev * share_prev / np.where(m_prev > 0, m_prev, 1.0), 0.0)
-    res = _merged(prev, w_prev, m_prev, initial, initial.w_sum * share_new, u)
+    # The new reservoir's weight is share p_hat W with W = w_sum / (M p_hat)
+    # (it was finalised with 1/M): w_sum share / M. Without the 1 / M, a
+    # frame of several initial samples (settings.samples) counted them M
+    # times over (indirect light 0.87 against 0.53 with two).
+    w_new = initial.w_sum * share_new / np.maximum(initial.M, np.float32(1))
+    res = _merged(prev, w_prev, m_prev, initial, w_new, u)
     return finalize(res, target_at(res, p, ng, ns), np.ones(len(res.M), np.float32))
 
 
