@@ -28,7 +28,7 @@ thesis, 9.1.3), each neighbour paired with the pixel's own technique c:
 
 (K = 0: h_i / p_c, the pixel's own estimate). Two shadow rays per pair, not
 the K (K + 1) of the balance heuristic over all techniques, whose variance
-was 9 % lower for twice the cost (glossy interior). Unbiased where y's
+was 13 % lower for 2.7 times the cost (glossy interior, 3 px). Unbiased where y's
 radiance does not depend on the direction it leaves in, as for the
 reservoirs' reconnection shift; sky samples stay each pixel's own.
 
@@ -50,7 +50,7 @@ from .initial import path_reused
 
 # The 4 adjacent pixels. One frame's indirect variance on the glossy interior
 # (bench/glossy_lobe.py's split, one worker), none 0.333; 4 at 1 px 0.111,
-# 4 diagonal 0.115, 4 at 2 px 0.118, 4 at 3 px 0.130, for the same ~120 ms;
+# 4 diagonal 0.115, 4 at 2 px 0.118, 4 at 3 px 0.130, for the same time;
 # 8 at 1 px 0.086 and 8 at 3 px 0.111 for twice that: no better for the time.
 OFFSETS = ((-1, 0), (1, 0), (0, -1), (0, 1))
 
@@ -108,12 +108,13 @@ def _shift(pix, dx, dy, width, height):
 
 
 def _lobe_terms(img, gs, pix, samples, with_f):
-    """Pixels pix toward the sample points of pixels ``samples``: the
-    integrand h (f of the specular lobe, cosine, geometry term, the lobe's
-    share and the sample's radiance, without visibility; or None), the density of their sampler's specular
-    lobe per area at those points (zero where it cannot reach them: below
-    their surface as their shading frame sees it, or on the far side of the
-    sample's surface) and that lobe's share of their whole sampler's density."""
+    """Pixels pix toward the sample points of pixels ``samples``: (h, p).
+    h (with_f; else None) is the integrand without visibility: f of the
+    specular lobe, cosine, geometry term, the sample's radiance and the
+    share of the pixel's sampler that the lobe has in that direction. p is
+    the density of that lobe's samples per area at those points, zero where
+    the pixels cannot reach them (below their surface as their shading
+    frame sees it, or on the far side of the sample's surface)."""
     n = img.n[pix]
     t, b = orthonormal_basis(n)     # the first pass's shading frames (ShadingFrame.at)
     q = np.take(gs.p_spec, pix)
