@@ -28,9 +28,9 @@ thesis, 9.1.3), each neighbour paired with the pixel's own technique c:
 
 (K = 0: h_i / p_c, the pixel's own estimate). Two shadow rays per pair, not
 the K (K + 1) of the balance heuristic over all techniques, whose variance
-was 13 % lower for 2.7 times the cost (glossy interior, 3 px). Unbiased where y's
-radiance does not depend on the direction it leaves in, as for the
-reservoirs' reconnection shift; sky samples stay each pixel's own.
+was 13 % lower for 2.7 times the cost (glossy interior, 3 px). Unbiased
+where y's radiance does not depend on the direction it leaves in, as for
+the reservoirs' reconnection shift; sky samples stay each pixel's own.
 
 Pixels whose sampler has a glass or sheen lobe (initial.path_reused) take
 no part: they neither give samples nor count as techniques, and keep their
