@@ -85,6 +85,17 @@ def z_of_difference(a, b):
     return d.mean(axis=0) / np.sqrt(np.maximum(d.var(axis=0, ddof=1) / len(d), 1e-30))
 
 
+def paired_z(a, b, what):
+    """(z of the image, z of the blocks, a summary) of the difference of two
+    paired sets of runs (R, P)."""
+    z_image = float(z_of_difference(a.sum(axis=1), b.sum(axis=1)))
+    z_blocks = z_of_difference(block_sums(a), block_sums(b))
+    summary = f"{what[0]} {a.sum(axis=1).mean():.4f}, {what[1]} {b.sum(axis=1).mean():.4f}, z = {z_image:.2f}; " \
+              f"blocks z in [{z_blocks.min():.2f}, {z_blocks.max():.2f}]"
+    print(summary)
+    return z_image, z_blocks, summary
+
+
 def runs(ctx, offsets=OFFSETS):
     own, reused = [], []
     for seed in range(RUNS):
@@ -119,11 +130,7 @@ def test03_reuse_keeps_the_mean(estimates):
     """Unbiased: the reused estimate's mean is the own estimate's, on the
     whole image and on every block (z-tests)."""
     own, reused = estimates
-    z_image = float(z_of_difference(reused.sum(axis=1), own.sum(axis=1)))
-    z_blocks = z_of_difference(block_sums(reused), block_sums(own))
-    summary = f"own {own.sum(axis=1).mean():.4f}, reused {reused.sum(axis=1).mean():.4f}, z = {z_image:.2f}; " \
-              f"blocks z in [{z_blocks.min():.2f}, {z_blocks.max():.2f}]"
-    print(summary)
+    z_image, z_blocks, summary = paired_z(reused, own, ("reused", "own"))
     assert abs(z_image) < z_limit(1), summary
     assert np.abs(z_blocks).max() < z_limit(len(z_blocks)), summary
 
@@ -141,8 +148,7 @@ def test05_weights_that_do_not_sum_to_one_are_caught(ctx, monkeypatch):
     p_c instead of K p_j + p_c) count the neighbours' samples K times over."""
     monkeypatch.setattr(glossy_reuse, "_pair_density", lambda k, p_j, p_c: p_j + p_c)
     own, reused = runs(ctx)
-    z_image = float(z_of_difference(reused.sum(axis=1), own.sum(axis=1)))
-    z_blocks = z_of_difference(block_sums(reused), block_sums(own))
+    z_image, z_blocks, _ = paired_z(reused, own, ("reused", "own"))
     assert abs(z_image) > z_limit(1) and np.abs(z_blocks).max() > z_limit(len(z_blocks))
 
 
@@ -185,11 +191,7 @@ def test07_whole_frames_keep_the_mean_of_frames_without_reuse():
                     result = restir.render_frame(c, settings, f)
                 out[on].append(luminance(result.color))
         on, off = (np.array(out[k], np.float64) for k in (True, False))
-        z_image = float(z_of_difference(on.sum(axis=1), off.sum(axis=1)))
-        z_blocks = z_of_difference(block_sums(on), block_sums(off))
-        summary = f"with {on.sum(axis=1).mean():.3f}, without {off.sum(axis=1).mean():.3f}, z = {z_image:.2f}; " \
-                  f"blocks z in [{z_blocks.min():.2f}, {z_blocks.max():.2f}]"
-        print(summary)
+        z_image, z_blocks, summary = paired_z(on, off, ("with", "without"))
         assert abs(z_image) < z_limit(1), summary
         assert np.abs(z_blocks).max() < z_limit(len(z_blocks)), summary
         assert on.var(axis=0).sum() < off.var(axis=0).sum()
