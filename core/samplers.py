@@ -88,24 +88,142 @@ def lens_uniforms(camera, seeds):
     return uniform2(seeds, DIM_CAMERA + 2)
 
 
-# The R2 sequence (Roberts 2018): point k is frac(k * (1/g, 1/g^2)), g the
-# plastic number. Any run of consecutive points covers the unit square evenly,
-# wherever the run starts.
-_R2 = (0.7548776662466927, 0.5698402909980532)
+def _sobol_columns(bits=32):
+    """Generator matrix columns of the first eight dimensions of the Sobol
+    sequence (Joe and Kuo's direction numbers): the base-2 radical inverse,
+    then the primitive polynomials of degrees 1, 2, 3, 3, 4, 4 and 5."""
+    dims = [[1 << (31 - k) for k in range(bits)]]
+    for degree, a, m in ((1, 0, [1]), (2, 1, [1, 3]), (3, 1, [1, 3, 1]), (3, 2, [1, 1, 1]),
+                         (4, 1, [1, 1, 3, 3]), (4, 4, [1, 3, 5, 13]), (5, 2, [1, 1, 5, 5, 17])):
+        m = list(m)
+        for k in range(degree, bits):
+            new = m[k - degree] ^ (m[k - degree] << degree)
+            for j in range(1, degree):
+                if (a >> (degree - 1 - j)) & 1:
+                    new ^= m[k - j] << j
+            m.append(new)
+        dims.append([m[k] << (31 - k) for k in range(bits)])
+    return np.array(dims, np.uint32)
 
 
-def sequence2(index, rotation):
-    """(N, 2) float32 uniforms: point ``index`` (an integer, or one per row)
-    of the R2 sequence, shifted toroidally by each row's ``rotation`` (N, 2)
-    in [0, 1). With a rotation fixed per pixel and uniform, every point is
-    uniform (averages stay unbiased), and a pixel's points over consecutive
-    indices are spread evenly rather than at random (Cranley-Patterson)."""
-    k = np.asarray(index, np.int64) % (1 << 40)
-    k = k.astype(np.float64)[..., None] * np.array(_R2)
-    point = (k - np.floor(k)).astype(np.float32)
-    u = rotation + point
-    u -= np.floor(u)
-    return np.minimum(u, np.float32(0.99999994), out=u)
+_SOBOL = _sobol_columns()
+
+
+def _byte_tables(columns):
+    """(4, 256, D) uint32: for each byte of an index, the XOR of the columns
+    of its set bits, so a point is four table reads."""
+    tables = np.zeros((4, 256, columns.shape[0]), np.uint32)
+    for chunk in range(4):
+        for byte in range(256):
+            for bit in range(8):
+                if byte >> bit & 1:
+                    tables[chunk, byte] ^= columns[:, chunk * 8 + bit]
+    return tables
+
+
+_SOBOL_BYTES = _byte_tables(_SOBOL)
+SOBOL_CAMERA = (0, 1)       # the pixel filter's dimensions of a pixel's Sobol points
+SOBOL_CHOICE = (2, 0, 1)    # a choice and a 2-D point (a first bounce's BSDF or light sample)
+
+
+def _reverse_bits(x):
+    x = ((x >> np.uint32(1)) & np.uint32(0x55555555)) | ((x & np.uint32(0x55555555)) << np.uint32(1))
+    x = ((x >> np.uint32(2)) & np.uint32(0x33333333)) | ((x & np.uint32(0x33333333)) << np.uint32(2))
+    x = ((x >> np.uint32(4)) & np.uint32(0x0F0F0F0F)) | ((x & np.uint32(0x0F0F0F0F)) << np.uint32(4))
+    x = ((x >> np.uint32(8)) & np.uint32(0x00FF00FF)) | ((x & np.uint32(0x00FF00FF)) << np.uint32(8))
+    return (x >> np.uint32(16)) | (x << np.uint32(16))
+
+
+def _laine_karras(x, keys):
+    """x (uint32, reversed bits) permuted in place: each bit flipped by a hash
+    of the bits below it and of keys."""
+    with np.errstate(over="ignore"):
+        x += keys
+        for m in (0x6C50B47C, 0xB82F1E52, 0xC7AFE638, 0x8D22F6E6):
+            x ^= x * np.uint32(m)
+    return x
+
+
+def shuffled_index(index, keys):
+    """(N,) uint32: ``index`` (an integer, or one per row) permuted per row
+    by a nested uniform scramble of its bits keyed by ``keys`` (N,) uint32
+    (Burley 2020, after Laine and Karras): every aligned run of 2^m indices
+    goes to an aligned run of 2^m indices, so a run of Sobol points stays a
+    net, but which point of one sequence goes with which of another is
+    random per row (padding): the pixel filter's position and a first
+    bounce's samples are never tied to each other."""
+    x = _reverse_bits(np.broadcast_to(np.asarray(index, np.int64) & 0xFFFFFFFF, keys.shape).astype(np.uint32))
+    return _reverse_bits(_laine_karras(x, keys))
+
+
+def sobol(index, scramble, dims):
+    """(N, len(dims)) float32 uniforms: dimensions ``dims`` of point
+    ``index`` ((N,) non-negative integers, or one for all rows) of the Sobol
+    sequence, Owen-scrambled per row and dimension by the keys ``scramble``
+    (N, len(dims)) uint32 (a nested uniform scramble of its digits, hashed
+    as Laine and Karras). Every aligned run of 2^m points is a net: its
+    first two dimensions put one point in each of any 2^m elementary boxes
+    of equal area (a 16-point run: one per cell of a 4x4 grid, also of 16x1
+    and 2x8 ...), the first three nearly so. The scramble keeps that, makes
+    every point uniform (averages stay unbiased), and makes the digits
+    below each box random: with a plain XOR (digital shift) the trailing
+    bits of a run stayed alike, and a light choice, which stretches its
+    uniform again and again (cluster, emitter, triangle), read them (the
+    room of 30 emitters' still: MSE 0.0074 against 0.0051 hashed)."""
+    k = np.broadcast_to(np.asarray(index, np.int64) & 0xFFFFFFFF, (len(scramble),))
+    cols = list(dims)
+    bits = np.zeros(scramble.shape, np.uint32)
+    for chunk in range(4):
+        byte = (k >> (8 * chunk)) & 0xFF
+        if chunk and not byte.any():
+            continue
+        bits ^= np.take(_SOBOL_BYTES[chunk], byte, axis=0)[:, cols]
+    bits = _reverse_bits(_laine_karras(_reverse_bits(bits), scramble))
+    u = (bits >> np.uint32(8)).astype(np.float32)
+    u *= _TO_UNIT
+    return u
+
+
+def scrambles(seeds, dim, count):
+    """(N, count) uint32 random bits of each seed at dimensions dim, dim + 1, ..."""
+    out = np.empty((len(seeds), count), np.uint32)
+    with np.errstate(over="ignore"):
+        for c in range(count):
+            out[:, c] = mix64(seeds + np.uint64(dim + c + 1) * _GOLDEN) >> np.uint64(32)
+    return out
+
+
+def sobol_jitter(keys, index):
+    """(N, 2) pixel filter uniforms for point ``index`` (an integer, or one
+    per row) of each row's Sobol points, keyed per row by ``keys`` (N,)
+    uint64 (a pixel's, of its image stream or of its render's samples)."""
+    bits = scrambles(keys, 0, 3)
+    return sobol(shuffled_index(index, bits[:, 2]), bits[:, :2], SOBOL_CAMERA)
+
+
+def first_bounce_uniforms(keys, index):
+    """The uniforms of a first bounce for point ``index`` (an integer, or one
+    per row) of each row's Sobol points, keyed per row by ``keys`` (N,)
+    uint64: ((u_lobe, u) of the BSDF's direction, (u_select, u) of the light
+    sample), each triple the first three dimensions of the points of its
+    own shuffled index (shuffled_index) under a scramble of its own
+    (sobol). Each point is uniform, as a hashed one, but a pixel's
+    points over consecutive indices cover the light's surface and the
+    BSDF's directions evenly, as Cycles' pattern does over its samples.
+    Direct light of the Cornell box's penumbrae, mean of a still's first 16
+    frames (tests/test_restir_adaptive_direct.py test07): variance 0.036 of
+    16 independent frames'. Tried: sequences of different kinds side by
+    side (768 points: the R2 sequence against a Sobol dimension 25 to 70 a
+    cell of a 4x4 grid; a golden ratio sequence beside a Sobol pair 3 to 19
+    a cell of 8x8), and the same Sobol dimensions unshuffled under two
+    scrambles, are not evenly spread together, so a stream of one seed
+    converged to a biased image; other dimensions of one unshuffled Sobol
+    point for each use left the room of 30 emitters' still noisier than
+    hashed uniforms (MSE 0.0075 against 0.0051)."""
+    bits = scrambles(keys, 3, 8)
+    a = sobol(shuffled_index(index, bits[:, 6]), bits[:, :3], SOBOL_CHOICE)
+    b = sobol(shuffled_index(index, bits[:, 7]), bits[:, 3:6], SOBOL_CHOICE)
+    return ((a[:, 0].copy(), np.ascontiguousarray(a[:, 1:])), (b[:, 0].copy(), np.ascontiguousarray(b[:, 1:])))
 
 
 def bounce_dim(bounce, offset):

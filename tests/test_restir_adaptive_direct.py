@@ -141,3 +141,31 @@ def test06_light_samples_near_an_emitter_count_in_the_mis_weights():
     print(f"near an emitter: 16 light samples give {ratio:.3f} of one sample's variance, z = {z:.2f}")
     assert abs(z) < 3.3
     assert ratio < 0.15
+
+
+def test07_a_stream_of_frames_spreads_its_light_samples(box):
+    """Along an image stream (stream_index: the frames of a still) each
+    pixel's light samples follow its scrambled sequences: the mean of 16
+    consecutive frames is the same as that of 16 independent ones (z-test
+    over runs, each run its own seed) with far less variance in the
+    penumbrae. Measured: 0.036 of the independent frames' variance."""
+    ctx, gb = box
+
+    def runs(stream):
+        out = []
+        for r in range(96):
+            seed = 100 + r
+            frames = [initial_samples(ctx, gb, seed, f, 0, 0, stream_index=f if stream else None)[1]
+                      for f in range(16)]
+            out.append(luminance(np.mean(frames, axis=0)))
+        return np.array(out, np.float64)
+
+    along, independent = runs(True), runs(False)
+    a, b = along.sum(axis=1), independent.sum(axis=1)
+    z = (a.mean() - b.mean()) / np.sqrt(a.var(ddof=1) / len(a) + b.var(ddof=1) / len(b))
+    noisy = independent.var(axis=0) > 1e-3 * independent.var(axis=0).max()
+    ratio = along.var(axis=0, ddof=1)[noisy].sum() / independent.var(axis=0, ddof=1)[noisy].sum()
+    print(f"16 frames along a stream: {ratio:.3f} of 16 independent frames' variance, z = {z:.2f}")
+    assert abs(z) < 3.3
+    assert noisy.mean() > 0.2
+    assert ratio < 0.15

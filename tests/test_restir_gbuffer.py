@@ -1,5 +1,5 @@
 """The G-buffer's camera rays (core/restir/gbuffer.py): over the frames of an
-image stream, a pixel's pixel-filter positions follow a rotated R2 sequence,
+image stream, a pixel's pixel-filter positions follow its scrambled Sobol points,
 so a still's mean of frames resolves edges faster, and stays unbiased."""
 
 from statistics import NormalDist
@@ -43,9 +43,11 @@ def test01_stream_jitter_is_each_pixels_own_sequence():
     assert np.array_equal(a, b) and a.dtype == np.float32 and a.shape == (50, 2)
     assert not np.array_equal(a, stream_jitter(3, pix, 6))      # the next frame moves on
     assert not np.array_equal(a, stream_jitter(4, pix, 5))      # another seed, other rotations
-    # Point-wise: each pixel steps by R2's constant between frames.
-    step = (stream_jitter(3, pix, 6) - a) % 1.0
-    assert np.allclose(step, step[0], atol=1e-5)
+    # A still's first 16 frames put one position of each pixel in each cell
+    # of a 4x4 grid over its filter.
+    run = np.stack([stream_jitter(3, pix, i) for i in range(16)], axis=1)       # (50, 16, 2)
+    cells = (run * 4).astype(int)
+    assert all(len(set(map(tuple, c))) == 16 for c in cells)
 
 
 def test02_still_mean_unbiased_and_edges_cleaner(ctx):
@@ -61,4 +63,6 @@ def test02_still_mean_unbiased_and_edges_cleaner(ctx):
     limit = NormalDist().inv_cdf(1.0 - 0.5 * (1.0 - (1.0 - 1e-3) ** (1.0 / int(edges.sum()))))
     assert np.abs(z).max() < limit, np.round(z, 2)
     ratio = seq.var(axis=0, ddof=1)[edges].sum() / var_h[edges].sum()
-    assert ratio < 0.6, ratio       # measured 0.40 (hashed positions: 1 by construction)
+    print(f"variance of the still's edges: {ratio:.3f} of hashed positions'")
+    assert ratio < 0.5, ratio       # measured 0.24 (the rotated R2 sequence before: 0.40;
+                                    # hashed positions: 1 by construction)

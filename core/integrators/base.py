@@ -169,15 +169,19 @@ def shadow_rays(ctx, p, ng, wi, dist):
     return o, d.astype(np.float32), tmax.astype(np.float32)
 
 
-def sample_continuation(ctx, surf, frame, seeds, bounce, kinds=False):
-    """BSDF-sample one new direction per hit.
+def sample_continuation(ctx, surf, frame, seeds, bounce, kinds=False, u=None):
+    """BSDF-sample one new direction per hit (u: (u_lobe, u) to use instead
+    of the seeds' own).
 
     Returns (wi world (N, 3), weight f cos / pdf (N, 3), pdf (N,), valid (N,)
     bool), and with ``kinds`` also each ray's kind of bounce (N,) int8
     (bounces.py).
     """
-    u_lobe = samplers.uniform(seeds, samplers.bounce_dim(bounce, samplers.D_LOBE))
-    u = samplers.uniform2(seeds, samplers.bounce_dim(bounce, samplers.D_BSDF_UV))
+    if u is None:
+        u_lobe = samplers.uniform(seeds, samplers.bounce_dim(bounce, samplers.D_LOBE))
+        u = samplers.uniform2(seeds, samplers.bounce_dim(bounce, samplers.D_BSDF_UV))
+    else:
+        u_lobe, u = u
     wi_local, f, pdf = bsdf.sample(frame.params, frame.wo_local, u_lobe, u)
     wi = frame.world(surf, wi_local)
     cos = np.abs(wi_local[:, 2])

@@ -27,7 +27,7 @@ from .bounces import binding, count, per_kind
 RR_START_BOUNCE = 3
 
 
-def radiance_from_surface(ctx, surf, seeds, bounce0, max_bounces, frame=None, counts=None):
+def radiance_from_surface(ctx, surf, seeds, bounce0, max_bounces, frame=None, counts=None, first=None):
     """Radiance reflected at ``surf`` toward ``surf.wo`` (its own emission excluded).
 
     bounce0 is the bounce index of ``surf`` (0 for camera hits). Every vertex up
@@ -37,7 +37,10 @@ def radiance_from_surface(ctx, surf, seeds, bounce0, max_bounces, frame=None, co
     kind's count past its limit only collects emission, and its path ends
     there; ``counts`` (N, 3): the bounces of each kind the paths made before
     ``surf`` (zero if None; a path already past a limit gives nothing). ``frame``: the
-    ShadingFrame of ``surf`` if the caller has it. Returns (N, 3) float32.
+    ShadingFrame of ``surf`` if the caller has it. ``first``: the uniforms
+    of the first vertex, ((u_lobe, u), (u_select, u)) per row of ``surf``,
+    instead of the seeds' own (samplers.first_bounce_uniforms). Returns
+    (N, 3) float32.
     """
     scene = ctx.scene
     n = len(surf)
@@ -60,12 +63,16 @@ def radiance_from_surface(ctx, surf, seeds, bounce0, max_bounces, frame=None, co
         s = seeds[alive]
         if frame is None:
             frame = ShadingFrame.at(scene, surf)
-        scatter_add(L, alive, beta * direct_light(ctx, surf, frame, s, bounce))
+        u_dir = u_light = None
+        if first is not None and bounce == bounce0:
+            (u_lobe, u), (u_sel, u_uv) = first
+            u_dir, u_light = (u_lobe[alive], gather(u, alive)), (u_sel[alive], gather(u_uv, alive))
+        scatter_add(L, alive, beta * direct_light(ctx, surf, frame, s, bounce, u_light=u_light))
         kinds = None
         if want_kinds:
-            wi, weight, pdf, valid, kinds = sample_continuation(ctx, surf, frame, s, bounce, kinds=True)
+            wi, weight, pdf, valid, kinds = sample_continuation(ctx, surf, frame, s, bounce, kinds=True, u=u_dir)
         else:
-            wi, weight, pdf, valid = sample_continuation(ctx, surf, frame, s, bounce)
+            wi, weight, pdf, valid = sample_continuation(ctx, surf, frame, s, bounce, u=u_dir)
         beta = beta * weight
         if bounce >= RR_START_BOUNCE:
             q = np.clip(1.0 - row_max(beta), 0.0, 0.95)
@@ -126,7 +133,8 @@ def escaped_radiance(lights, wi, pdf_bsdf, n, beta):
     return scale(beta * lights.world_radiance(wi), w)
 
 
-CAMERA_JITTER = 0x7E7       # key of each pixel's rotation of its pixel filter sequence
+CAMERA_JITTER = 0x7E7       # key of each pixel's scramble of its pixel filter's dimensions
+FIRST_BOUNCE = 0xF1B        # key of its scrambles of the first bounce's dimensions
 
 
 @dataclass
@@ -146,11 +154,11 @@ def camera_pass(ctx, width, height, seed, frame, sample, max_bounces, pixel_filt
     n = len(pix)
     seeds = samplers.path_seeds(seed, frame, pix, sample)
     xy = np.stack([pix % width, pix // width], axis=1).astype(np.float32) + 0.5
-    # The pixel filter's positions over a render's samples follow the R2
-    # sequence, rotated per pixel and frame: each uniform, together evenly
-    # spread (as Cycles' Sobol pattern), so edges converge faster.
-    rotation = samplers.uniform2(samplers.hash_keys(seed, frame, pix, CAMERA_JITTER), samplers.DIM_CAMERA)
-    xy += pixel_filter.offsets(samplers.sequence2(sample, rotation))
+    # The pixel filter's positions over a render's samples, and the first
+    # bounce's light samples and BSDF directions, follow the pixel's Sobol
+    # points, scrambled per pixel and frame: each uniform, together evenly
+    # spread (as Cycles' pattern), so edges and direct light converge faster.
+    xy += pixel_filter.offsets(samplers.sobol_jitter(samplers.hash_keys(seed, frame, pix, CAMERA_JITTER), sample))
     o, d, tmax = generate_rays(scene.camera, width, height, xy, samplers.lens_uniforms(scene.camera, seeds))
     hits = ctx.accel.intersect_closest(o, d, tmax, camera=True)
 
@@ -164,7 +172,9 @@ def camera_pass(ctx, width, height, seed, frame, sample, max_bounces, pixel_filt
     surf, idx = surface_hits(scene, o, d, hits)
     if len(idx):
         shading = ShadingFrame.at(scene, surf, camera_ray=True)
-        light = radiance_from_surface(ctx, surf, seeds[idx], 0, max_bounces, shading)
+        keys = samplers.hash_keys(seed, frame, pix[idx], FIRST_BOUNCE)
+        first = samplers.first_bounce_uniforms(keys, sample if np.ndim(sample) == 0 else np.take(sample, idx))
+        light = radiance_from_surface(ctx, surf, seeds[idx], 0, max_bounces, shading, first=first)
         light += materials.camera_emission(scene, surf, ctx.lights)
         scatter_add(color, idx, light)
         depth[idx] = view_depth(scene.camera, surf.p)

@@ -84,6 +84,9 @@ class ReSTIRSettings:
                                     # 1 turns it off, accumulation.STILL averages every frame
     glossy_reuse: bool = True       # the glossy lobe's light from each pixel's and its
                                     # neighbours' samples (glossy_reuse.py)
+    sequences: bool = True          # each pixel's first-bounce light samples and directions
+                                    # follow its sequences over the frames of its stream
+                                    # (samplers.first_bounce_uniforms; else hashed anew)
     frame_weight: float = 1.0       # this frame's weight in the running means, in frames
                                     # (an unbiased still's first frames weigh less: core/render.py)
 
@@ -231,13 +234,17 @@ class ReSTIRGI:
             hold = reprojected_hold(prev, history.noise_hold) if history is not None else None
             counts = light_sample_counts(part.index, prev, hold, settings.light_samples)
             # Initial samples (several per pixel are streamed into one reservoir).
+            per_frame = max(1, settings.samples)
+            along = settings.sequences
             initial, direct, glossy = initial_samples(ctx, part, settings.seed, frame, 0,
                                                       settings.max_bounces, settings.initial_sampling, counts,
-                                                      own_surface_glossy=not path_reuse)
+                                                      own_surface_glossy=not path_reuse,
+                                                      stream_index=self.frames * per_frame if along else None)
             reused = GlossySamples.of_range(part, initial) if path_reuse else None
             for s in range(1, max(1, settings.samples)):
                 extra, d, g = initial_samples(ctx, part, settings.seed, frame, s, settings.max_bounces,
-                                              settings.initial_sampling, counts)
+                                              settings.initial_sampling, counts,
+                                              stream_index=self.frames * per_frame + s if along else None)
                 merge(initial, extra, extra.w_sum, extra.M, samplers.uniform(seeds[a:b], 10 + s))
                 direct += d
                 glossy += g

@@ -124,8 +124,11 @@ def world_distance(scene):
     return np.float32(1e4 * scene.extent())
 
 
+STREAM_SAMPLE = 0x57EA        # key of each pixel's scrambles of its stream sequences
+
+
 def initial_samples(ctx, gb, seed, frame, sample, max_bounces, sampling=COSINE, light_samples=1,
-                    own_surface_glossy=True):
+                    own_surface_glossy=True, stream_index=None):
     """Reservoirs (one per pixel, empty where nothing was hit) holding each
     pixel's new sample; the direct light of each pixel (P, 3), estimated
     with ``light_samples`` NEE samples averaged (each keeps its one-sample MIS
@@ -135,7 +138,11 @@ def initial_samples(ctx, gb, seed, frame, sample, max_bounces, sampling=COSINE, 
     own_surface_glossy False: the glossy light leaves out the samples on
     surfaces that the specular lobes of the points path reuse takes drew
     (glossy_reuse.py estimates those; sky samples stay, and so do those the
-    diffuse lobe drew)."""
+    diffuse lobe drew).
+    stream_index: the sample's place in its image stream, whose first
+    bounce's uniforms then follow each pixel's sequences over the stream
+    (samplers.first_bounce_uniforms; else the seeds' own): a still's mean
+    of frames converges faster (docs/plan.md)."""
     scene = ctx.scene
     n_pix = len(gb.valid)
     res = Reservoirs.empty(n_pix)
@@ -149,8 +156,13 @@ def initial_samples(ctx, gb, seed, frame, sample, max_bounces, sampling=COSINE, 
     params, wo_l = frame_sh.params, frame_sh.wo_local
 
     # Direction: hemisphere warp, or the BSDF for glossy materials.
-    u_lobe = samplers.uniform(seeds, samplers.bounce_dim(0, samplers.D_LOBE))
-    u = samplers.uniform2(seeds, samplers.bounce_dim(0, samplers.D_BSDF_UV))
+    if stream_index is None:
+        u_lobe = samplers.uniform(seeds, samplers.bounce_dim(0, samplers.D_LOBE))
+        u = samplers.uniform2(seeds, samplers.bounce_dim(0, samplers.D_BSDF_UV))
+        u_light = None
+    else:
+        (u_lobe, u), u_light = samplers.first_bounce_uniforms(
+            samplers.hash_keys(seed, index + gb.offset, STREAM_SAMPLE), stream_index)
     wi_l = square_to_uniform_hemisphere(u) if sampling == UNIFORM else square_to_cosine_hemisphere(u)
     glossy = _bsdf_sampled(params)
     by_kind = getattr(ctx.accel, "per_kind_visibility", False)
@@ -186,18 +198,21 @@ def initial_samples(ctx, gb, seed, frame, sample, max_bounces, sampling=COSINE, 
     # light samples left its noise as it was (the room of small emitters:
     # 16 light samples a point, direct light's variance 0.12 -> 0.108).
     countf = counts.astype(np.float32)
-    d = direct_light(ctx, surf, frame_sh, seeds, 0, mis=True,
+    d = direct_light(ctx, surf, frame_sh, seeds, 0, mis=True, u_light=u_light,
                      strategy_pdf=lambda w_l: _source_pdf(params, wo_l, w_l, sampling),
                      weigh=_world_split(lights, params), count=countf)
     extra = counts - 1
     if extra.any():
         # Samples k = 1 .. count - 1 of the points that take more; sample 0 is
         # the one above (the stratified pattern starts at the origin, so its
-        # first point is exactly the seeds' own uniforms).
+        # first point is exactly sample 0's uniforms).
         rep = np.repeat(np.arange(len(index)), extra)
         k = np.arange(len(rep)) - np.repeat(np.cumsum(extra) - extra, extra) + 1
-        s_sel = samplers.uniform(seeds[rep], samplers.bounce_dim(0, samplers.D_LIGHT_SELECT))
-        s_uv = samplers.uniform2(seeds[rep], samplers.bounce_dim(0, samplers.D_LIGHT_UV))
+        if u_light is None:
+            s_sel = samplers.uniform(seeds[rep], samplers.bounce_dim(0, samplers.D_LIGHT_SELECT))
+            s_uv = samplers.uniform2(seeds[rep], samplers.bounce_dim(0, samplers.D_LIGHT_UV))
+        else:
+            s_sel, s_uv = u_light[0][rep], gather(u_light[1], rep)
         u_light = samplers.stratified_light_uniforms(k, counts[rep], s_sel, s_uv)
         surf_k, frame_k = surf.subset(rep), frame_sh.subset(rep)
         params_k, wo_k = frame_k.params, frame_k.wo_local
