@@ -111,11 +111,12 @@ def test_chunk_warmup_is_as_good_as_the_continuous_render(addon, reports, tmp_pa
     """The room of the corpus (camera moving through 32 frames, the file's
     settings, half resolution): frame 25 as the first frame of a chunk whose
     16 warm-up frames start fresh at frame 9 has at most the MSE of frame 25
-    of the continuous render (against a 1024-spp Cycles reference) + 10 %,
-    and less than a cold start (the file's still warm-up at frame 25): a
-    chunk boundary would show as a change in noise. Measured: chunk 0.88x
-    the continuous render, cold 1.11x (bench/bench_chunks.py: 2.4x at full
-    resolution before the camera's jitter followed a sequence)."""
+    of the continuous render (against a 1024-spp Cycles reference) + 10 %:
+    a chunk boundary would show as a change in noise. Measured: chunk 0.83x
+    the continuous render. A cold start (no chunk warm-up: the file's still
+    warm-up of frame 25's own view) was 1.11x until a still's frames
+    followed each pixel's Sobol points, and is now 0.77x, no longer a
+    bound to test the chunk against (bench/bench_chunks.py compares them)."""
     def ours(warmup):
         def setup(scene):
             scene.render.engine = "RESTIR_GI"
@@ -131,10 +132,8 @@ def test_chunk_warmup_is_as_good_as_the_continuous_render(addon, reports, tmp_pa
     ref = _job(tmp_path, "ref", 25, 25, cycles)[25]
     continuous = _job(tmp_path, "all", 1, 25, ours(16))[25]
     chunk = _job(tmp_path, "chunk", 25, 25, ours(16))[25]
-    cold = _job(tmp_path, "cold", 25, 25, ours(0))[25]
-    e_cont, e_chunk, e_cold = (float(((img - ref) ** 2).mean()) for img in (continuous, chunk, cold))
-    print(f"MSE continuous {e_cont:.5f}, chunk {e_chunk:.5f}, cold {e_cold:.5f}")
+    e_cont, e_chunk = (float(((img - ref) ** 2).mean()) for img in (continuous, chunk))
+    print(f"MSE continuous {e_cont:.5f}, chunk {e_chunk:.5f}")
     assert np.abs(chunk - continuous).mean() > 1e-3 * continuous.mean()    # not the same frames
     assert e_chunk < 1.10 * e_cont, (e_chunk, e_cont)     # (one frame of one seed)
-    assert e_cold > 1.1 * e_chunk, (e_cold, e_chunk)     # 1.26 here
     assert reports.of("ERROR") == []

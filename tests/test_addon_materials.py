@@ -235,9 +235,11 @@ def test_light_path_is_camera_ray_seen_by_the_camera(addon, mode):
     np.testing.assert_allclose(img[0, 0], (1, 0, 0), atol=1e-3)       # the camera's background
     # The floor beside the emitter: lit by the grey world only (at most
     # 0.8 x 0.5, less what the emitter's quad hides of the sky), neither by
-    # the emitter nor by the red background.
+    # the emitter nor by the red background. With 4 samples a pixel, path
+    # tracing measured 0.408-0.429 over four seeds (64 samples: 0.391-0.400);
+    # the emitter's light would add about 1.
     floor = img[12, 9]
-    assert 0.3 < floor.mean() < 0.41
+    assert 0.3 < floor.mean() < 0.45
     assert abs(floor[0] - floor[2]) < 0.02
 
 
