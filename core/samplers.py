@@ -217,9 +217,7 @@ def first_bounce_uniforms(keys, index):
     cell of a 4x4 grid; a golden ratio sequence beside a Sobol pair 3 to 19
     a cell of 8x8), and the same Sobol dimensions unshuffled under two
     scrambles, are not evenly spread together, so a stream of one seed
-    converged to a biased image; other dimensions of one unshuffled Sobol
-    point for each use left the room of 30 emitters' still noisier than
-    hashed uniforms (MSE 0.0075 against 0.0051)."""
+    converged to a biased image (docs/plan.md)."""
     bits = scrambles(keys, 3, 8)
     a = sobol(shuffled_index(index, bits[:, 6]), bits[:, :3], SOBOL_CHOICE)
     b = sobol(shuffled_index(index, bits[:, 7]), bits[:, 3:6], SOBOL_CHOICE)
