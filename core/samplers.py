@@ -89,12 +89,12 @@ def lens_uniforms(camera, seeds):
 
 
 def _sobol_columns(bits=32):
-    """Generator matrix columns of the first eight dimensions of the Sobol
+    """Generator matrix columns of the first three dimensions of the Sobol
     sequence (Joe and Kuo's direction numbers): the base-2 radical inverse,
-    then the primitive polynomials of degrees 1, 2, 3, 3, 4, 4 and 5."""
+    then the primitive polynomials of degrees 1 and 2 (a pixel's points use
+    no more: a pair, or a choice and a pair)."""
     dims = [[1 << (31 - k) for k in range(bits)]]
-    for degree, a, m in ((1, 0, [1]), (2, 1, [1, 3]), (3, 1, [1, 3, 1]), (3, 2, [1, 1, 1]),
-                         (4, 1, [1, 1, 3, 3]), (4, 4, [1, 3, 5, 13]), (5, 2, [1, 1, 5, 5, 17])):
+    for degree, a, m in ((1, 0, [1]), (2, 1, [1, 3])):
         m = list(m)
         for k in range(degree, bits):
             new = m[k - degree] ^ (m[k - degree] << degree)
@@ -112,12 +112,12 @@ _SOBOL = _sobol_columns()
 def _byte_tables(columns):
     """(4, 256, D) uint32: for each byte of an index, the XOR of the columns
     of its set bits, so a point is four table reads."""
+    byte = np.arange(256)
     tables = np.zeros((4, 256, columns.shape[0]), np.uint32)
-    for chunk in range(4):
-        for byte in range(256):
-            for bit in range(8):
-                if byte >> bit & 1:
-                    tables[chunk, byte] ^= columns[:, chunk * 8 + bit]
+    for bit in range(8):
+        on = ((byte >> bit) & 1).astype(bool)
+        for chunk in range(4):
+            tables[chunk, on] ^= columns[:, chunk * 8 + bit]
     return tables
 
 

@@ -112,6 +112,7 @@ def test04_group_used_twice_maps_inputs_and_outputs(ng, Link):
     assert math1.inputs["Value_001"] == approx(1.0)
     assert mix1.inputs["A_Color"] == mix2.inputs["A_Color"] == Link(r, "Color")
     assert mix1.inputs["Factor_Float"] == Link(m1, "Value")
+    assert mix2.inputs["Factor_Float"] == Link(m2, "Value")     # each instance its own nodes
     bsdf_inputs = graph.nodes[-1].inputs
     assert bsdf_inputs["Base Color"] == bsdf_inputs["Coat Tint"] == Link(x1, "Result_Color")
     assert bsdf_inputs["Emission Color"] == Link(x2, "Result_Color")
