@@ -1,11 +1,12 @@
 """Unbiased still renders (F12) of the corpus in the core harness: their MSE
 against the cached 1024-spp Cycles references of bench/equal_time.py, over
-seeds, with each pixel's Sobol points over the frames (the default) and
-with every frame's uniforms hashed anew (ReSTIRSettings.sequences off), in
-one run; and each one's noise in the direct and the indirect light.
+seeds, for each value of one ReSTIRSettings field (by default with each
+pixel's Sobol points over the frames and with every frame's uniforms hashed
+anew: ``sequences``), in one run; and each one's noise in the direct and the
+indirect light.
 
     .venv/bin/python bench/stills.py [--scenes glossy,emitters,room,courtyard]
-                                     [--frames 16] [--seeds 3]
+                                     [--frames 16] [--seeds 3] [--vary sky_samples=0,4]
 
 The camera is pinned at its frame-1 pose and frame 32 is rendered, as
 bench/equal_time.py's still rows do (run that first: it caches the
@@ -14,6 +15,7 @@ Noise = half the mean squared difference of two seeds' stills.
 """
 
 import argparse
+import ast
 import dataclasses
 import sys
 import time
@@ -38,7 +40,11 @@ def main():
     ap.add_argument("--scenes", default="glossy,emitters,room,courtyard")
     ap.add_argument("--frames", type=int, default=16)
     ap.add_argument("--seeds", type=int, default=3)
+    ap.add_argument("--vary", default="sequences=True,False",
+                    help="a ReSTIRSettings field and the values to compare, e.g. sky_samples=0,4")
     args = ap.parse_args()
+    field, _, listed = args.vary.partition("=")
+    values = [(f"{field}={v}", ast.literal_eval(v)) for v in listed.split(",")]
     load_addon()
     import bpy
     from restir_gi.core import RenderContext
@@ -47,7 +53,7 @@ def main():
     from restir_gi.restir_addon.final import restir_settings
 
     print(f"unbiased stills of {args.frames} frames, {args.seeds} seeds, one worker")
-    print("| scene | uniforms | MSE | noise | noise of direct | noise of indirect | mean ratio | s per still |")
+    print("| scene | setting | MSE | noise | noise of direct | noise of indirect | mean ratio | s per still |")
     print("|---|---|---:|---:|---:|---:|---:|---:|")
     for name in args.scenes.split(","):
         refs = sorted((OUT / "refs").glob(f"{name}_still_f32_*.exr"))
@@ -65,8 +71,8 @@ def main():
         core_scene, _ = export_scene(bpy.context.evaluated_depsgraph_get(), w, h)
         ctx = RenderContext.build(core_scene, threads=1, processes=False)
         base = dataclasses.replace(restir_settings(scene), mode="RESTIR_UNBIASED")
-        for label, sequences in (("Sobol points", True), ("hashed", False)):
-            settings = dataclasses.replace(base, sequences=sequences)
+        for label, value in values:
+            settings = dataclasses.replace(base, **{field: value})
             images, parts, errs, means, times = [], [], [], [], []
             for seed in range(args.seeds):
                 out, seconds = still(ctx, settings, args.frames, 7 + seed)

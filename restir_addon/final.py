@@ -67,7 +67,7 @@ def restir_settings(scene):
         spatial_M_cap=float(s.spatial_m_cap), max_age=s.max_age,
         spatial_neighbors=s.spatial_neighbors, spatial_radius=float(s.spatial_radius),
         validation_interval=s.validation_interval, light_samples=s.light_samples,
-        boiling_filter=float(s.boiling_filter))
+        sky_samples=s.sky_samples, boiling_filter=float(s.boiling_filter))
 
 
 def film_images(film):

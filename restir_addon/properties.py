@@ -83,6 +83,13 @@ class RestirGISceneSettings(bpy.types.PropertyGroup):
         description="ReSTIR GI: shadow rays per frame for the direct light of pixels whose direct "
                     "light was noisy last frame (penumbrae, several lights); other pixels get one",
     )
+    sky_samples: IntProperty(
+        name="Sky Samples", default=4, min=0, max=64,
+        description="ReSTIR GI: occlusion rays per pixel and frame toward the world for the light "
+                    "it casts on diffuse surfaces, where the world lights the image (a share of "
+                    "pixels cast one where it gives little); 0: the world's light goes through the "
+                    "reservoirs",
+    )
     boiling_filter: FloatProperty(
         name="Boiling Filter", default=0.2, min=0.0, max=1.0, subtype="FACTOR",
         description="Empty reservoirs far brighter than their 16x16 pixel neighbourhood, so one rare "

@@ -62,6 +62,7 @@ class RESTIR_RENDER_PT_resampling(RestirButtonsPanel, bpy.types.Panel):
         s = context.scene.restir_gi
         layout.prop(s, "initial_sampling")
         layout.prop(s, "light_samples")
+        layout.prop(s, "sky_samples")
         col = layout.column(align=True)
         col.prop(s, "temporal_m_cap")
         col.prop(s, "max_age")

@@ -58,6 +58,18 @@ def test_passes_hold_depth_normal_albedo(addon, tmp_path, mode):
 
 # ---------------------------------------------------------------- bad input
 
+def test_resampling_panel_settings_reach_the_renderer(addon):
+    """What the Resampling panel sets is what ReSTIR GI renders with."""
+    scene = fresh(mode="RESTIR_UNBIASED")
+    s = scene.restir_gi
+    s.light_samples, s.sky_samples, s.spatial_neighbors, s.boiling_filter = 7, 0, 3, 0.5
+    settings = addon.restir_addon.final.restir_settings(scene)
+    assert (settings.light_samples, settings.sky_samples, settings.spatial_neighbors) == (7, 0, 3)
+    assert settings.boiling_filter == pytest.approx(0.5) and settings.mode == "RESTIR_UNBIASED"
+    s.sky_samples = 8
+    assert addon.restir_addon.final.restir_settings(scene).sky_samples == 8
+
+
 @pytest.mark.parametrize("mode", MODES)
 def test_empty_scene_renders_black(addon, reports, tmp_path, mode):
     scene = fresh(mode=mode)

@@ -1,8 +1,9 @@
 """ReSTIR GI under an environment: the world counted once.
 
 The visible points' NEE takes the world's bright directions (world_share, a
-function of the direction only) and the sky samples carry the rest, the
-glossy lobe split by MIS; a constant world reaches the reservoirs whole. If
+function of the direction only) and the sky rays (core/restir/sky.py) carry
+the rest for the diffuse lobe, or with sky_samples 0 the reservoirs' sky
+samples, the glossy lobe split by MIS; a constant world is no NEE light. If
 either side counted the world's light twice or not at all, the unbiased
 mode's mean would leave the path tracer's. As in test_restir_vs_path.py,
 independent runs give the standard error of ReSTIR's mean and the film's
@@ -144,3 +145,17 @@ def test04_unbiased_with_reuse_matches_path_tracing(setup):
             result = restir.render_frame(ctx, settings, f)
         out.append(luminance(result.color))
     assert_same_mean(np.stack(out).astype(np.float64), ref, f"{world}, unbiased")
+
+
+def test05_sky_samples_in_the_reservoirs_match_path_tracing(setup):
+    """Without sky rays the diffuse lobe's world light goes through the
+    reservoirs as sky samples, reused at other pixels: the mean stays."""
+    world, ctx, ref = setup
+    out = []
+    for r in range(96):
+        restir = ReSTIRGI()
+        settings = ReSTIRSettings(mode=UNBIASED, seed=900 + r, max_bounces=MAX_BOUNCES, sky_samples=0)
+        for f in range(4):
+            result = restir.render_frame(ctx, settings, f)
+        out.append(luminance(result.color))
+    assert_same_mean(np.stack(out).astype(np.float64), ref, f"{world}, unbiased, sky samples")

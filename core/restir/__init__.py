@@ -19,7 +19,7 @@ from ..camera import PixelFilter
 from ..parallel import release_free_memory
 from ..reservoir_store import NARROW_MIN_PIXELS
 from ..reservoirs import finalize, merge
-from ..rows import gather, scale, scatter
+from ..rows import gather, scale, scatter, scatter_add
 from ..sampling import luminance
 from .accumulation import (COLUMNS, Accumulation, accumulate, geometric_edges, light_range, previous_pixels,
                            restart, same_view)
@@ -32,6 +32,7 @@ from .shading import carried_visibility, shade_indirect
 from .shift import target_at
 from .spatial import shared_terms, spatial_resample
 from .silhouettes import refine_edges
+from .sky import frame_plan, visible_sky_light
 from .temporal import FrameHistory, ObjectMotion, carry_with_objects, reproject, temporal_resample
 from .validation import validate
 
@@ -87,6 +88,9 @@ class ReSTIRSettings:
     sequences: bool = True          # each pixel's first-bounce light samples and directions
                                     # follow its sequences over the frames of its stream
                                     # (samplers.first_bounce_uniforms; else hashed anew)
+    sky_samples: int = 4            # occlusion rays toward the world per visible point and
+                                    # frame for the diffuse lobe's sky light (sky.py); 0 leaves
+                                    # it to the reservoirs' sky samples
     frame_weight: float = 1.0       # this frame's weight in the running means, in frames
                                     # (an unbiased still's first frames weigh less: core/render.py)
 
@@ -125,6 +129,7 @@ class ReSTIRGI:
         self._geometry_key = None   # Scene.geometry_key of the last frame
         self._stale = False         # the lighting changed since the last validation
         self._light_edit = False    # lights, materials or world changed since the last validation
+        self._sky_share = None      # the sky rays' share of the last frame's direct light
 
     def restart_accumulation(self):
         """The next frame starts every pixel's running mean over (accumulation.py)."""
@@ -226,6 +231,8 @@ class ReSTIRGI:
             on = np.where(object_id >= 0, motion.moved_now[np.maximum(object_id, 0)], False)
             return np.where(on, min(cap, MOVING_M_CAP), cap).astype(np.float32)
 
+        sky_plan = frame_plan(settings.sky_samples, self._sky_share)     # sky.py
+
         def new_samples(a, b):
             t = time.perf_counter()
             part = trace_rows(ctx, settings.seed, frame, pixel_filter, True, a, b, self.frames)
@@ -239,17 +246,23 @@ class ReSTIRGI:
             initial, direct, glossy = initial_samples(ctx, part, settings.seed, frame, 0,
                                                       settings.max_bounces, settings.initial_sampling, counts,
                                                       own_surface_glossy=not path_reuse,
-                                                      stream_index=self.frames * per_frame if along else None)
+                                                      stream_index=self.frames * per_frame if along else None,
+                                                      sky_rays=sky_plan[0] > 0)
             reused = GlossySamples.of_range(part, initial) if path_reuse else None
             for s in range(1, max(1, settings.samples)):
                 extra, d, g = initial_samples(ctx, part, settings.seed, frame, s, settings.max_bounces,
                                               settings.initial_sampling, counts,
-                                              stream_index=self.frames * per_frame + s if along else None)
+                                              stream_index=self.frames * per_frame + s if along else None,
+                                              sky_rays=sky_plan[0] > 0)
                 merge(initial, extra, extra.w_sum, extra.M, samplers.uniform(seeds[a:b], 10 + s))
                 direct += d
                 glossy += g
             direct /= max(1, settings.samples)
             glossy /= max(1, settings.samples)
+            sky = visible_sky_light(ctx, part, settings.seed, frame, sky_plan,
+                                    [self.frames * per_frame + s if along else None for s in range(per_frame)])
+            scatter_add(direct, part.index, sky)
+            sky_lum = scatter(np.zeros(b - a, np.float32), part.index, luminance(sky).astype(np.float32))
             finalize(initial, target_at(initial, part.p, part.ng, part.n))
             t = spent("initial", t)
             temporal = temporal_resample(initial, part, history, prev, samplers.uniform(seeds[a:b], 5),
@@ -261,7 +274,8 @@ class ReSTIRGI:
             spent("temporal", t)
             return FirstPass(part.valid, part.depth, part.object_id, part.p, part.n, part.ng, part.albedo,
                              direct, luminance(direct).astype(np.float32), part.emission, glossy, diffuse,
-                             alpha, keep, prev.astype(np.int32), hold, temporal, reused)
+                             alpha, keep, prev.astype(np.int32), hold, temporal, reused,
+                             sky_lum)
 
         # The first pass's colours and factors go into the columns of the
         # array that the second pass turns into this frame's running means
@@ -274,6 +288,9 @@ class ReSTIRGI:
         one = ctx.workers.map_into(new_samples, n, out=FirstPass.allocate(
             n, shaded, history is not None, GlossySamples.allocate(n) if path_reuse else None))
         prev_pix, temporal = one.prev_pix, one.temporal
+        if sky_plan[0] > 0:
+            lit = float(one.lum_direct.sum(dtype=np.float64))
+            self._sky_share = float(one.sky.sum(dtype=np.float64)) / lit if lit > 0 else 1.0
         t = time.perf_counter()
         refined = refine_edges(ctx, settings.seed, frame, pixel_filter, one.seen, one.lum_direct,
                                 settings.edge_samples, self.frames)

@@ -93,6 +93,7 @@ class FirstPass:
     hold: np.ndarray        # (P,) int8 reprojected noise hold, or None
     temporal: object        # Reservoirs
     glossy_samples: object = None   # GlossySamples (glossy_reuse.py), or None without path reuse
+    sky: np.ndarray = None  # (P,) luminance of the sky rays' light (part of direct)
 
     @staticmethod
     def allocate(n, shaded, with_hold, glossy_samples=None):
@@ -106,7 +107,7 @@ class FirstPass:
                          shaded[:, 14:17], shaded[:, 3:6],
                          shaded[:, 9:12], shaded[:, 13], shaded[:, 12], np.empty(n, np.int32),
                          np.empty(n, np.int8) if with_hold else None, Reservoirs.empty(0).whole_image(n),
-                         glossy_samples)
+                         glossy_samples, np.empty(n, np.float32))
 
 
 @dataclass

@@ -128,7 +128,7 @@ STREAM_SAMPLE = 0x57EA        # key of each pixel's scrambles of its stream sequ
 
 
 def initial_samples(ctx, gb, seed, frame, sample, max_bounces, sampling=COSINE, light_samples=1,
-                    own_surface_glossy=True, stream_index=None):
+                    own_surface_glossy=True, stream_index=None, sky_rays=False):
     """Reservoirs (one per pixel, empty where nothing was hit) holding each
     pixel's new sample; the direct light of each pixel (P, 3), estimated
     with ``light_samples`` NEE samples averaged (each keeps its one-sample MIS
@@ -142,7 +142,10 @@ def initial_samples(ctx, gb, seed, frame, sample, max_bounces, sampling=COSINE, 
     stream_index: the sample's place in its image stream, whose first
     bounce's uniforms then follow each pixel's sequences over the stream
     (samplers.first_bounce_uniforms; else the seeds' own): a still's mean
-    of frames converges faster (docs/plan.md)."""
+    of frames converges faster (docs/plan.md).
+    sky_rays: the world's light on the diffuse lobe comes from sky rays
+    (sky.py), so rays that escape are no samples of the reservoirs (they
+    keep their glossy lobe's share)."""
     scene = ctx.scene
     n_pix = len(gb.valid)
     res = Reservoirs.empty(n_pix)
@@ -266,17 +269,20 @@ def initial_samples(ctx, gb, seed, frame, sample, max_bounces, sampling=COSINE, 
     if not own_surface_glossy:
         reused = np.take(path_reused(params), rows2) & (kind2 == bsdf.KIND_GLOSSY)
         lo_glossy = scale(lo, (~reused).astype(np.float32))
-    # Rays that escaped sample the world: a far point in their direction whose
-    # radiance is the world's (less NEE's share), so sky light is resampled
-    # like any other. The glossy lobe takes the world's radiance by MIS.
+    # Rays that escaped sample the world. The glossy lobe takes the world's
+    # radiance by MIS. For the diffuse lobe, sky rays (sky.py) carry it, or
+    # else the ray becomes a sky sample: a far point in its direction whose
+    # radiance is the world's (less NEE's share), resampled like any other.
     miss = rows[~hits.hit]
     if len(miss) and ctx.lights.environment is not None:
-        far = world_distance(scene)
         pm = index[miss]
         wi_m = gather(wi, miss)
         le = lights.world_radiance(wi_m)
         w_b = power_heuristic(pdf[miss], lights.pdf_world(wi_m, gather(surf.ns, miss)) * countf[miss])
         lo_glossy = np.concatenate([lo_glossy, scale(le, w_b).astype(np.float32)])
+        rows2, pix = np.concatenate([rows2, miss]), np.concatenate([pix, pm])
+    if len(miss) and ctx.lights.environment is not None and not sky_rays:
+        far = world_distance(scene)
         scatter(res.x2, pm, gather(surf.p, miss) + wi_m * far)
         for name in ("ng2", "n2", "wo2"):
             scatter(getattr(res, name), pm, -wi_m)
@@ -285,7 +291,6 @@ def initial_samples(ctx, gb, seed, frame, sample, max_bounces, sampling=COSINE, 
         res.seed[pm] = seeds[miss]
         if kinds is not None:
             res.kind[pm] = kinds[miss]
-        rows2, pix = np.concatenate([rows2, miss]), np.concatenate([pix, pm])
     lo_all = gather(res.lo, pix)
     p_hat = target(lo_all) * cos[rows2]
     w = np.where(p_hat > 0, p_hat / pdf[rows2], 0.0).astype(np.float32)

@@ -1,0 +1,139 @@
+"""The world's light on the diffuse lobe of visible points, from sky rays.
+
+ReSTIR GI's reservoirs hold secondary surface points; direct light, the
+world's included, is estimated apart (Ouyang et al. treat the environment as
+a light of the direct pass). A sample ray that escapes could be kept as a
+far "sky sample" and resampled like indirect light, but a reservoir keeps
+one direction for several frames and lends it to its neighbours, and sky
+light is mostly visibility: whether a direction is open or blocked, which a
+neighbour's open direction says little about. On an open courtyard under a
+sky the stills kept the sky's noise through every warm-up frame (their
+error was the sky light carried by reservoirs; docs/plan.md).
+
+So each visible point with a diffuse lobe casts ``count`` cosine-weighted
+occlusion rays toward the world per frame (frame_plan): diffuse x L_world(wi) x V(wi)
+averaged over them is the diffuse lobe's world light, without bias (f cos /
+pdf of a Lambert lobe under cosine sampling is its colour). The world's
+share that the points' NEE already takes (an HDRI's bright regions:
+initial.world_share) is left out, as for the sky samples this replaces. On
+a still view a pixel's rays follow its own Sobol points over the frames of
+its stream (aligned runs of ``count`` points per frame), so a still's mean
+of frames covers the hemisphere evenly. Occlusion rays are the cheapest
+query (no hit record, no shading at the far end).
+"""
+
+import numpy as np
+
+from .. import samplers
+from ..accel import offset_origins
+from ..rows import gather, row_max, scale, scatter
+from ..sampling import dot, square_to_cosine_hemisphere, to_world
+from .initial import world_share
+
+SKY_SAMPLE = 0x5C1E5        # key of each pixel's scrambles of its sky ray sequence
+SKY_SHARE_MIN = 0.1         # below this share of the last frame's direct light, fewer sky rays
+SKY_KEEP_MIN = 1.0 / 16     # the least share of visible points that cast a sky ray
+_GOLDEN = 0.6180339887498949
+SKY_DIM = 7                 # a bounce-0 dimension no other decision reads (hashed uniforms)
+
+
+def sky_directions(keys, counts, run, stream_index=None, seeds=None):
+    """(sum(counts), 2) uniforms for counts[i] rays of row i, row after row:
+    with stream_index, points stream_index * run + k (k < counts[i] <= run)
+    of each row's Sobol points (keys (N,) uint64 per row); else hashed from
+    seeds (N,) uint64."""
+    k = np.arange(counts.sum(), dtype=np.int64) - np.repeat(np.cumsum(counts) - counts, counts)
+    if stream_index is not None:
+        bits = np.repeat(samplers.scrambles(keys, 0, 3), counts, axis=0)
+        index = samplers.shuffled_index(stream_index * run + k, bits[:, 2])
+        return samplers.sobol(index, bits[:, :2], samplers.SOBOL_CAMERA)
+    own = samplers.hash_keys(np.repeat(seeds, counts), k)
+    return samplers.uniform2(own, samplers.bounce_dim(0, SKY_DIM))
+
+
+def sky_light(ctx, surf, frame, count, keys=None, stream_index=None, seeds=None):
+    """(N, 3) the world's light reflected by the diffuse lobe of surface
+    points ``surf`` (shading frame ``frame``) toward their viewers, from
+    ``count`` occlusion rays each (an integer, or (N,) integers of at most
+    ``run = max(count)``; see sky_directions for keys, stream_index and
+    seeds). Zeros without a world or where count is 0."""
+    n = len(surf)
+    out = np.zeros((n, 3), np.float32)
+    lights = ctx.lights
+    counts = np.broadcast_to(np.asarray(count, np.int64), (n,))
+    if n == 0 or lights.environment is None or counts.max(initial=0) <= 0:
+        return out
+    run = int(counts.max())
+    diffuse = frame.params.diffuse
+    rows = np.nonzero((row_max(diffuse) > 0) & (counts > 0))[0]
+    if len(rows) == 0:
+        return out
+    per = counts[rows]
+    u = sky_directions(None if keys is None else keys[rows], per, run, stream_index,
+                       None if seeds is None else seeds[rows])
+    rep = np.repeat(rows, per)
+    local = square_to_cosine_hemisphere(u)
+    wi = to_world(local, gather(frame.t, rep), gather(frame.b, rep), gather(surf.ns, rep)).astype(np.float32)
+    ng = gather(surf.ng, rep)
+    # Only directions on the side of the surface the lobe faces (shading and
+    # geometric normals can disagree near silhouettes of smooth meshes).
+    up = dot(wi, ng) > 0
+    radiance = scale(lights.world_radiance(wi), (1.0 - world_share(lights, wi)) * up / np.repeat(per, per))
+    live = np.nonzero(row_max(radiance) > 0)[0]
+    if len(live) == 0:
+        return out
+    o = offset_origins(gather(surf.p, rep[live]), gather(ng, live), gather(wi, live), ctx.eps)
+    blocked = ctx.accel.occluded(o, gather(wi, live), np.full(len(live), np.inf, np.float32))
+    open_ = live[~blocked]
+    for c in range(3):
+        out[:, c] = np.bincount(rep[open_], weights=radiance[open_, c], minlength=n)
+    out *= diffuse
+    return out
+
+
+def frame_plan(sky_samples, share):
+    """(rays per point, share of the visible points that cast them) of a
+    frame, from the sky's share of the last frame's direct light (None: no
+    last frame). Where the sky lights the image (an open courtyard) every
+    point casts ``sky_samples``; where it gives little (a closed room under
+    a world, a dim world) a share of the points, in proportion down to
+    SKY_KEEP_MIN, cast one each and weigh it by the inverse of that share
+    (Russian roulette: still unbiased, and the sky's light is too small a
+    part there for its added noise to show). The plan never depends on this
+    frame's own sky rays, so each frame's estimate stays unbiased; it is
+    the same for every point of the frame, whatever the workers."""
+    if sky_samples <= 0:
+        return 0, 0.0
+    if share is None or share >= SKY_SHARE_MIN:
+        return sky_samples, 1.0
+    return 1, max(share / SKY_SHARE_MIN, SKY_KEEP_MIN)
+
+
+def visible_sky_light(ctx, gb, seed, frame, plan, stream_indices):
+    """(len(gb.index), 3) the sky light of the visible points of G-buffer
+    range gb, averaged over one estimate per entry of stream_indices (each
+    the point of the pixels' Sobol sequences, or None for hashed rays),
+    with ``plan`` = frame_plan(...). The points that cast rays under a
+    plan's share: frac(pixel x golden ratio + r), r random per frame, below
+    the share (each pixel with that probability; spread evenly)."""
+    count, keep = plan
+    out = np.zeros((len(gb.index), 3), np.float32)
+    if count <= 0 or len(gb.index) == 0 or ctx.lights.environment is None:
+        return out
+    pixels = gb.index + gb.offset
+    rows = None
+    if keep < 1.0:
+        r = float(samplers.uniform(samplers.hash_keys(seed, frame, SKY_SAMPLE), 0))
+        rows = np.nonzero(np.modf(pixels * _GOLDEN + r)[0] < keep)[0]
+        if len(rows) == 0:
+            return out
+        pixels = pixels[rows]
+    surf = gb.surf if rows is None else gb.surf.subset(rows)
+    sh = gb.frame if rows is None else gb.frame.subset(rows)
+    keys = samplers.hash_keys(seed, pixels, SKY_SAMPLE)
+    seeds = samplers.path_seeds(seed, frame, pixels, 0)
+    total = np.zeros((len(pixels), 3), np.float32)
+    for s, index in enumerate(stream_indices):
+        total += sky_light(ctx, surf, sh, count, keys=keys, stream_index=index, seeds=samplers.hash_keys(seeds, s))
+    total *= np.float32(1.0 / (keep * len(stream_indices)))
+    return total if rows is None else scatter(out, rows, total)
