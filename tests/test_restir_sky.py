@@ -17,7 +17,7 @@ from core.environment import Environment
 from core.integrators.base import ShadingFrame
 from core.interaction import surface_hits
 from core.restir.initial import world_share
-from core.restir.sky import SKY_KEEP_MIN, frame_plan, sky_light, visible_sky_light
+from core.restir.sky import SKY_KEEP_MIN, point_plan, sky_light, visible_sky_light
 from core.samplers import hash_keys
 from core.sampling import square_to_uniform_hemisphere
 from scenes import Builder, look_at, quad
@@ -148,18 +148,21 @@ def test05_sobol_points_over_a_stream_cover_the_hemisphere():
     ctx.close()
 
 
-def test06_a_share_of_points_casting_keeps_the_mean():
-    """Where the sky gives little, a share of the points cast one ray each,
-    weighted by its inverse (frame_plan): per point the mean over frames is
-    the integral, and about that share of the points cast rays."""
-    assert frame_plan(4, None) == (4, 1.0) and frame_plan(4, 0.5) == (4, 1.0)
-    assert frame_plan(4, 0.05) == (1, 0.5) and frame_plan(4, 0.0) == (1, SKY_KEEP_MIN)
-    assert frame_plan(0, 0.5)[0] == 0
+def test06_a_share_of_frames_casting_keeps_the_mean():
+    """Where the sky gave little of a point's direct light, it casts one ray
+    in a share of the frames, weighted by its inverse (point_plan): per
+    point the mean over frames is the integral, and about that share of
+    the points cast rays in a frame."""
+    counts, keep = point_plan(4, [np.nan, 0.5, 0.05, 0.0])
+    assert list(counts) == [4, 4, 1, 1]
+    np.testing.assert_allclose(keep, [1.0, 1.0, 0.5, SKY_KEEP_MIN])
+    assert (point_plan(0, [0.5])[0] == 0).all()
     ctx, surf, frame = scene_and_points()
     ref = brute_force(ctx, surf, frame)
     idx = np.tile(np.arange(len(surf)), 200)
     gb = SimpleNamespace(index=np.arange(len(idx)), offset=0, surf=surf.subset(idx), frame=frame.subset(idx))
-    runs = np.stack([visible_sky_light(ctx, gb, 3, f, (1, 0.25), [None]) for f in range(120)])
+    plan = (np.tile([1, 4, 1], 200), np.tile(np.float32([0.25, 1.0, 0.5]), 200))
+    runs = np.stack([visible_sky_light(ctx, gb, 3, f, plan, 4, [None]) for f in range(120)])
     per_point = runs.reshape(-1, 200, len(surf), 3).mean(axis=(0, 1))
     se = runs.reshape(-1, len(surf), 3).std(axis=0, ddof=1) / np.sqrt(runs.shape[0] * 200)
     z = (per_point - ref) / (se + 1e-9)
@@ -167,6 +170,7 @@ def test06_a_share_of_points_casting_keeps_the_mean():
     ctx.close()
     ctx, surf, frame = scene_and_points(wall=False)     # every ray open: nonzero = cast
     gb = SimpleNamespace(index=np.arange(len(idx)), offset=0, surf=surf.subset(idx), frame=frame.subset(idx))
-    cast = np.mean([(visible_sky_light(ctx, gb, 3, f, (1, 0.25), [None])[:, 2] > 0).mean() for f in range(20)])
-    assert abs(cast - 0.25) < 0.01, cast
+    cast = np.mean([(visible_sky_light(ctx, gb, 3, f, plan, 4, [None])[:, 2] > 0).reshape(200, 3).mean(axis=0)
+                    for f in range(20)], axis=0)
+    np.testing.assert_allclose(cast, [0.25, 1.0, 0.5], atol=0.015)
     ctx.close()

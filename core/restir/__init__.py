@@ -32,7 +32,7 @@ from .shading import carried_visibility, shade_indirect
 from .shift import target_at
 from .spatial import shared_terms, spatial_resample
 from .silhouettes import refine_edges
-from .sky import frame_plan, visible_sky_light
+from .sky import pixel_shares, point_plan, visible_sky_light
 from .temporal import FrameHistory, ObjectMotion, carry_with_objects, reproject, temporal_resample
 from .validation import validate
 
@@ -129,7 +129,6 @@ class ReSTIRGI:
         self._geometry_key = None   # Scene.geometry_key of the last frame
         self._stale = False         # the lighting changed since the last validation
         self._light_edit = False    # lights, materials or world changed since the last validation
-        self._sky_share = None      # the sky rays' share of the last frame's direct light
 
     def restart_accumulation(self):
         """The next frame starts every pixel's running mean over (accumulation.py)."""
@@ -142,7 +141,7 @@ class ReSTIRGI:
         if h is None:
             return 0
         return sum(r.nbytes for r in _distinct(h.temporal, h.spatial)) + sum(
-            a.nbytes for a in (h.p, h.n, h.ng, h.depth, h.valid, h.object_id, h.noise_hold,
+            a.nbytes for a in (h.p, h.n, h.ng, h.depth, h.valid, h.object_id, h.noise_hold, h.sky_share,
                                 h.visibility, h.accumulation) if a is not None)
 
     def render_frame(self, ctx, settings, frame):
@@ -231,7 +230,7 @@ class ReSTIRGI:
             on = np.where(object_id >= 0, motion.moved_now[np.maximum(object_id, 0)], False)
             return np.where(on, min(cap, MOVING_M_CAP), cap).astype(np.float32)
 
-        sky_plan = frame_plan(settings.sky_samples, self._sky_share)     # sky.py
+        sky_on = settings.sky_samples > 0 and ctx.lights.environment is not None     # sky.py
 
         def new_samples(a, b):
             t = time.perf_counter()
@@ -247,19 +246,22 @@ class ReSTIRGI:
                                                       settings.max_bounces, settings.initial_sampling, counts,
                                                       own_surface_glossy=not path_reuse,
                                                       stream_index=self.frames * per_frame if along else None,
-                                                      sky_rays=sky_plan[0] > 0)
+                                                      sky_rays=sky_on)
             reused = GlossySamples.of_range(part, initial) if path_reuse else None
             for s in range(1, max(1, settings.samples)):
                 extra, d, g = initial_samples(ctx, part, settings.seed, frame, s, settings.max_bounces,
                                               settings.initial_sampling, counts,
                                               stream_index=self.frames * per_frame + s if along else None,
-                                              sky_rays=sky_plan[0] > 0)
+                                              sky_rays=sky_on)
                 merge(initial, extra, extra.w_sum, extra.M, samplers.uniform(seeds[a:b], 10 + s))
                 direct += d
                 glossy += g
             direct /= max(1, settings.samples)
             glossy /= max(1, settings.samples)
-            sky = visible_sky_light(ctx, part, settings.seed, frame, sky_plan,
+            share = np.where(prev >= 0, history.sky_share[np.maximum(prev, 0)], np.nan) \
+                if sky_on and history is not None and history.sky_share is not None else np.full(b - a, np.nan)
+            sky = visible_sky_light(ctx, part, settings.seed, frame,
+                                    point_plan(settings.sky_samples, share[part.index]), settings.sky_samples,
                                     [self.frames * per_frame + s if along else None for s in range(per_frame)])
             scatter_add(direct, part.index, sky)
             sky_lum = scatter(np.zeros(b - a, np.float32), part.index, luminance(sky).astype(np.float32))
@@ -288,9 +290,6 @@ class ReSTIRGI:
         one = ctx.workers.map_into(new_samples, n, out=FirstPass.allocate(
             n, shaded, history is not None, GlossySamples.allocate(n) if path_reuse else None))
         prev_pix, temporal = one.prev_pix, one.temporal
-        if sky_plan[0] > 0:
-            lit = float(one.lum_direct.sum(dtype=np.float64))
-            self._sky_share = float(one.sky.sum(dtype=np.float64)) / lit if lit > 0 else 1.0
         t = time.perf_counter()
         refined = refine_edges(ctx, settings.seed, frame, pixel_filter, one.seen, one.lum_direct,
                                 settings.edge_samples, self.frames)
@@ -312,6 +311,7 @@ class ReSTIRGI:
             # is let go now (a frame that can be interrupted, the viewport's,
             # keeps it all for the frame that follows).
             history.temporal = history.n = history.ng = history.valid = history.noise_hold = None
+            history.sky_share = None
 
         # The unbiased mode does not carry its spatial reservoirs: with 1/Z
         # weights a carried reservoir's weight is w_sum M / Z, and once visible
@@ -398,6 +398,9 @@ class ReSTIRGI:
         direct_total, indirect, albedo, normal, alpha = frame_acc.direct, frame_acc.indirect, \
             frame_acc.albedo, frame_acc.normal, frame_acc.alpha
         hold = update_noise_hold(None, img.valid, img.width, img.height, one.hold, lum=one.lum_direct)
+        sky_share = None
+        if sky_on:
+            sky_share = pixel_shares(one.sky, luminance(direct_total) + luminance(indirect), img.width, img.height)
         one = None     # the first pass's arrays: released before the history is made
         for r in _distinct(temporal, spatial):
             if hasattr(r, "keep_for_next_frame"):
@@ -408,7 +411,7 @@ class ReSTIRGI:
             ng=img.ng, depth=img.depth, valid=img.valid, object_id=img.object_id,
             object_keys=list(scene.object_keys), object_matrices=np.asarray(scene.object_matrices),
             signature=_signature(scene), temporal=temporal, spatial=spatial, visibility=visibility,
-            noise_hold=hold, accumulation=acc)
+            noise_hold=hold, accumulation=acc, sky_share=sky_share)
         self.frames += 1
         if len(img.valid) >= TRIM_MIN_PIXELS:
             release_free_memory()   # the passes' temporaries, freed in the workers' heaps

@@ -10,9 +10,10 @@ neighbour's open direction says little about. On an open courtyard under a
 sky the stills kept the sky's noise through every warm-up frame (their
 error was the sky light carried by reservoirs; docs/plan.md).
 
-So each visible point with a diffuse lobe casts ``count`` cosine-weighted
-occlusion rays toward the world per frame (frame_plan): diffuse x L_world(wi) x V(wi)
-averaged over them is the diffuse lobe's world light, without bias (f cos /
+So each visible point with a diffuse lobe casts cosine-weighted occlusion
+rays toward the world each frame (4 where the sky gave at least a tenth of
+the light around the pixel last frame, else one in half of the frames:
+point_plan): diffuse x L_world(wi) x V(wi) averaged over them is the diffuse lobe's world light, without bias (f cos /
 pdf of a Lambert lobe under cosine sampling is its colour). The world's
 share that the points' NEE already takes (an HDRI's bright regions:
 initial.world_share) is left out, as for the sky samples this replaces. On
@@ -31,8 +32,10 @@ from ..sampling import dot, square_to_cosine_hemisphere, to_world
 from .initial import world_share
 
 SKY_SAMPLE = 0x5C1E5        # key of each pixel's scrambles of its sky ray sequence
-SKY_SHARE_MIN = 0.1         # below this share of the last frame's direct light, fewer sky rays
-SKY_KEEP_MIN = 1.0 / 16     # the least share of visible points that cast a sky ray
+SKY_SHARE_MIN = 0.1         # below this share of a pixel's light last frame, fewer sky rays
+SHARE_RADIUS = 4            # pixels around each whose sky share decides its rays (pixel_shares)
+SKY_KEEP_MIN = 0.5          # the least share of frames in which a point casts a sky ray (room
+                            # still, MSE against no sky rays: 1/16 +10 %, 1/4 +2 %, 1/2 +0.1 %)
 _GOLDEN = 0.6180339887498949
 SKY_DIM = 7                 # a bounce-0 dimension no other decision reads (hashed uniforms)
 
@@ -51,11 +54,12 @@ def sky_directions(keys, counts, run, stream_index=None, seeds=None):
     return samplers.uniform2(own, samplers.bounce_dim(0, SKY_DIM))
 
 
-def sky_light(ctx, surf, frame, count, keys=None, stream_index=None, seeds=None):
+def sky_light(ctx, surf, frame, count, keys=None, stream_index=None, seeds=None, run=None):
     """(N, 3) the world's light reflected by the diffuse lobe of surface
     points ``surf`` (shading frame ``frame``) toward their viewers, from
     ``count`` occlusion rays each (an integer, or (N,) integers of at most
-    ``run = max(count)``; see sky_directions for keys, stream_index and
+    ``run``, by default max(count): the length of each pixel's Sobol run
+    per stream index; see sky_directions for keys, stream_index and
     seeds). Zeros without a world or where count is 0."""
     n = len(surf)
     out = np.zeros((n, 3), np.float32)
@@ -63,7 +67,7 @@ def sky_light(ctx, surf, frame, count, keys=None, stream_index=None, seeds=None)
     counts = np.broadcast_to(np.asarray(count, np.int64), (n,))
     if n == 0 or lights.environment is None or counts.max(initial=0) <= 0:
         return out
-    run = int(counts.max())
+    run = int(counts.max()) if run is None else run
     diffuse = frame.params.diffuse
     rows = np.nonzero((row_max(diffuse) > 0) & (counts > 0))[0]
     if len(rows) == 0:
@@ -91,49 +95,75 @@ def sky_light(ctx, surf, frame, count, keys=None, stream_index=None, seeds=None)
     return out
 
 
-def frame_plan(sky_samples, share):
-    """(rays per point, share of the visible points that cast them) of a
-    frame, from the sky's share of the last frame's direct light (None: no
-    last frame). Where the sky lights the image (an open courtyard) every
-    point casts ``sky_samples``; where it gives little (a closed room under
-    a world, a dim world) a share of the points, in proportion down to
-    SKY_KEEP_MIN, cast one each and weigh it by the inverse of that share
-    (Russian roulette: still unbiased, and the sky's light is too small a
-    part there for its added noise to show). The plan never depends on this
-    frame's own sky rays, so each frame's estimate stays unbiased; it is
-    the same for every point of the frame, whatever the workers."""
+def point_plan(sky_samples, share):
+    """(rays (N,), share of frames they are cast in (N,)) for points whose
+    sky rays gave ``share`` (N,) of their light last frame (NaN: no
+    history; pixel_shares). Where the sky lights a point (an open courtyard) it casts
+    ``sky_samples`` each frame; where it gives little (a closed room under a
+    world, a dim world) the point casts one ray in a share of the frames,
+    in proportion down to SKY_KEEP_MIN, weighted by the inverse of that
+    share (Russian roulette: unbiased, and the sky's light is too small a
+    part there for its added noise to show). Taken per point: a room's
+    world gave 0.4 % of its image's direct light but more beside its
+    window, where one ray in a sixteenth of the frames for the whole image
+    put that light in noise (room still +10 % MSE). The plan never depends on this frame's own sky
+    rays, so each frame's estimate stays unbiased."""
+    share = np.asarray(share, np.float32)
     if sky_samples <= 0:
-        return 0, 0.0
-    if share is None or share >= SKY_SHARE_MIN:
-        return sky_samples, 1.0
-    return 1, max(share / SKY_SHARE_MIN, SKY_KEEP_MIN)
+        return np.zeros(share.shape, np.int64), np.zeros(share.shape, np.float32)
+    full = ~(share < SKY_SHARE_MIN)        # NaN: no history, all rays
+    counts = np.where(full, sky_samples, 1)
+    keep = np.where(full, 1.0, np.maximum(np.nan_to_num(share) / SKY_SHARE_MIN, SKY_KEEP_MIN))
+    return counts, keep.astype(np.float32)
 
 
-def visible_sky_light(ctx, gb, seed, frame, plan, stream_indices):
+def visible_sky_light(ctx, gb, seed, frame, plan, run, stream_indices):
     """(len(gb.index), 3) the sky light of the visible points of G-buffer
     range gb, averaged over one estimate per entry of stream_indices (each
     the point of the pixels' Sobol sequences, or None for hashed rays),
-    with ``plan`` = frame_plan(...). The points that cast rays under a
-    plan's share: frac(pixel x golden ratio + r), r random per frame, below
-    the share (each pixel with that probability; spread evenly)."""
-    count, keep = plan
+    with ``plan`` = point_plan(...) of those points and ``run`` the largest
+    count of any frame (the pixels' Sobol runs). A point casts in a share
+    ``keep`` of the frames where frac(pixel x golden ratio + r) < keep, r
+    random per frame: each pixel with that probability, spread evenly."""
+    counts, keep = plan
     out = np.zeros((len(gb.index), 3), np.float32)
-    if count <= 0 or len(gb.index) == 0 or ctx.lights.environment is None:
+    if run <= 0 or len(gb.index) == 0 or ctx.lights.environment is None:
         return out
     pixels = gb.index + gb.offset
-    rows = None
-    if keep < 1.0:
-        r = float(samplers.uniform(samplers.hash_keys(seed, frame, SKY_SAMPLE), 0))
-        rows = np.nonzero(np.modf(pixels * _GOLDEN + r)[0] < keep)[0]
+    r = float(samplers.uniform(samplers.hash_keys(seed, frame, SKY_SAMPLE), 0))
+    cast = (counts > 0) & ((keep >= 1.0) | (np.modf(pixels * _GOLDEN + r)[0] < keep))
+    rows = None if cast.all() else np.nonzero(cast)[0]
+    if rows is not None:
         if len(rows) == 0:
             return out
-        pixels = pixels[rows]
+        pixels, counts, keep = pixels[rows], counts[rows], keep[rows]
     surf = gb.surf if rows is None else gb.surf.subset(rows)
     sh = gb.frame if rows is None else gb.frame.subset(rows)
     keys = samplers.hash_keys(seed, pixels, SKY_SAMPLE)
     seeds = samplers.path_seeds(seed, frame, pixels, 0)
     total = np.zeros((len(pixels), 3), np.float32)
     for s, index in enumerate(stream_indices):
-        total += sky_light(ctx, surf, sh, count, keys=keys, stream_index=index, seeds=samplers.hash_keys(seeds, s))
-    total *= np.float32(1.0 / (keep * len(stream_indices)))
+        total += sky_light(ctx, surf, sh, counts, keys=keys, stream_index=index,
+                           seeds=samplers.hash_keys(seeds, s), run=run)
+    total = scale(total, 1.0 / (keep * len(stream_indices))).astype(np.float32)
     return total if rows is None else scatter(out, rows, total)
+
+
+def pixel_shares(sky, light, width, height, radius=SHARE_RADIUS):
+    """(P,) float16 the sky rays' share of each pixel's light, over the
+    (2 radius + 1)^2 pixels around it (sky and light (P,) luminances; the
+    light all of it, not its direct part: in a room lit indirectly the sky
+    through a window was all of most walls' direct light):
+    one pixel's share from four rays is noise (all blocked in one frame
+    put it at 0 and its next frame at one ray weighted 16), and the sky's
+    openness changes slowly across the image."""
+    def box(a):
+        a = np.pad(a.reshape(height, width).astype(np.float64), radius, mode="edge")
+        c = np.cumsum(np.cumsum(np.pad(a, ((1, 0), (1, 0))), axis=0), axis=1)
+        k = 2 * radius + 1
+        return c[k:, k:] - c[:-k, k:] - c[k:, :-k] + c[:-k, :-k]
+
+    d = box(light)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        share = np.where(d > 0, box(sky) / d, 0.0)
+    return share.reshape(-1).astype(np.float16)
