@@ -17,7 +17,7 @@ from core.environment import Environment
 from core.integrators.base import ShadingFrame
 from core.interaction import surface_hits
 from core.restir.initial import world_share
-from core.restir.sky import SKY_KEEP_MIN, point_plan, sky_light, visible_sky_light
+from core.restir.sky import SKY_KEEP_MIN, pixel_shares, point_plan, sky_light, visible_sky_light
 from core.samplers import hash_keys
 from core.sampling import square_to_uniform_hemisphere
 from scenes import Builder, look_at, quad
@@ -174,3 +174,23 @@ def test06_a_share_of_frames_casting_keeps_the_mean():
                     for f in range(20)], axis=0)
     np.testing.assert_allclose(cast, [0.25, 1.0, 0.5], atol=0.015)
     ctx.close()
+
+
+def test07_shares_are_taken_over_the_pixels_around():
+    """A pixel's share is the sky's part of the light of the 9x9 pixels
+    around it: one pixel whose rays were all blocked keeps its neighbours'
+    share (and all its rays), a region without sky gets none."""
+    w, h = 40, 20
+    light = np.ones(w * h, np.float32)
+    sky = np.zeros((h, w), np.float32)
+    sky[:, :20] = 0.5                   # the left half: half of its light from the sky
+    sky[10, 10] = 0.0                   # one pixel's rays all blocked
+    stored = pixel_shares(sky.reshape(-1), light, w, h)
+    assert stored.dtype == np.float16 and stored.shape == (w * h,)      # kept with the history
+    share = stored.astype(np.float32).reshape(h, w)
+    assert abs(share[10, 10] - 0.5 * 80 / 81) < 1e-3
+    assert abs(share[5, 3] - 0.5) < 1e-3 and share[5, 35] == 0
+    assert 0.2 < share[5, 19] < 0.3      # 5 of 9 columns lit
+    counts, keep = point_plan(4, share.reshape(-1))
+    assert counts.reshape(h, w)[10, 10] == 4 and keep.reshape(h, w)[5, 35] == SKY_KEEP_MIN
+    assert (pixel_shares(sky.reshape(-1), np.zeros(w * h, np.float32), w, h) == 0).all()

@@ -400,7 +400,8 @@ class ReSTIRGI:
         hold = update_noise_hold(None, img.valid, img.width, img.height, one.hold, lum=one.lum_direct)
         sky_share = None
         if sky_on:
-            sky_share = pixel_shares(one.sky, luminance(direct_total) + luminance(indirect), img.width, img.height)
+            lit = (luminance(direct_total) + luminance(indirect)) * img.valid     # not the world seen directly
+            sky_share = pixel_shares(one.sky, lit, img.width, img.height)
         one = None     # the first pass's arrays: released before the history is made
         for r in _distinct(temporal, spatial):
             if hasattr(r, "keep_for_next_frame"):

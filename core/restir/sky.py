@@ -98,16 +98,17 @@ def sky_light(ctx, surf, frame, count, keys=None, stream_index=None, seeds=None,
 def point_plan(sky_samples, share):
     """(rays (N,), share of frames they are cast in (N,)) for points whose
     sky rays gave ``share`` (N,) of their light last frame (NaN: no
-    history; pixel_shares). Where the sky lights a point (an open courtyard) it casts
-    ``sky_samples`` each frame; where it gives little (a closed room under a
-    world, a dim world) the point casts one ray in a share of the frames,
-    in proportion down to SKY_KEEP_MIN, weighted by the inverse of that
-    share (Russian roulette: unbiased, and the sky's light is too small a
-    part there for its added noise to show). Taken per point: a room's
-    world gave 0.4 % of its image's direct light but more beside its
-    window, where one ray in a sixteenth of the frames for the whole image
-    put that light in noise (room still +10 % MSE). The plan never depends on this frame's own sky
-    rays, so each frame's estimate stays unbiased."""
+    history; pixel_shares). Where the sky lights a point (an open
+    courtyard) it casts ``sky_samples`` each frame; where it gives little
+    (a closed room under a world, a dim world) the point casts one ray in
+    a share of the frames, in proportion down to SKY_KEEP_MIN, weighted by
+    the inverse of that share (Russian roulette: unbiased, and the sky's
+    light is too small a part there for its added noise to show). Taken
+    per point: a room's world gave 0.4 % of its image's direct light but
+    more beside its window, where one ray in a sixteenth of the frames for
+    the whole image put that light in noise (room still +10 % MSE). The
+    plan never depends on this frame's own sky rays, so each frame's
+    estimate stays unbiased."""
     share = np.asarray(share, np.float32)
     if sky_samples <= 0:
         return np.zeros(share.shape, np.int64), np.zeros(share.shape, np.float32)
