@@ -24,7 +24,8 @@ raw buffers) into an anonymous memory file of its own, two of them used in
 turn, and announces it on a pipe with the pass's number and size; a reader
 is always done with a file before its writer reuses it (it answers each
 message before the next is written). If the child dies, diverges or cannot
-send, the parent computes the child's ranges itself and goes on alone; an
+send, or does not answer in time (WAIT_SECONDS), the parent computes the
+child's ranges itself and goes on alone; an
 exception raised by the pass in the child is raised again in the parent.
 
 Only on Linux (no fork on Windows; unsafe on macOS with system frameworks);
@@ -47,6 +48,9 @@ AVAILABLE = sys.platform.startswith("linux") and hasattr(os, "fork") and hasattr
 
 _HEADER = struct.Struct("<QQ")      # pass number, bytes in the memory file
 IDLE_SECONDS = 60.0     # a parked twin that is not resumed within this exits
+WAIT_SECONDS = 30.0     # the parent waits for the child's half of a pass at least this long, and
+WAIT_FACTOR = 20.0      # this many times its own half's time: then it goes on alone (a child
+                        # stuck in a lock some other thread held at the fork never answers)
 
 
 class TwinLost(RuntimeError):
@@ -177,12 +181,13 @@ class Twin:
         even = fast / (fast + slow)
         self.balance[key] = min(0.9, max(0.1, 0.5 * share + 0.5 * even))
 
-    def exchange(self, payload):
-        """Send this side's payload of the next pass and return the other's."""
+    def exchange(self, payload, timeout=None):
+        """Send this side's payload of the next pass and return the other's
+        (TwinLost if it does not come within timeout seconds)."""
         k = self.calls
         self.calls += 1
         self._send(k, payload)
-        return self._receive(k)
+        return self._receive(k, timeout)
 
     def _send(self, k, payload):
         buffers = []
@@ -209,7 +214,11 @@ class Twin:
         except (BrokenPipeError, OSError) as e:
             raise TwinLost(f"the other process is gone: {e}") from e
 
-    def _receive(self, k):
+    def _receive(self, k, timeout=None):
+        if timeout is not None:
+            ready, _, _ = select.select([self._pipes[0]], [], [], timeout)
+            if not ready:
+                raise TwinLost(f"the other process did not answer within {timeout:.0f} s")
         header = _read_exactly(self._pipes[0], _HEADER.size)
         got_k, size = _HEADER.unpack(header)
         if got_k != k:
@@ -290,8 +299,11 @@ def run_pass(twin, fn, parts, written):
         payload = ("error", _picklable(e), traceback.format_exc())
     finally:
         twin.in_pass = False
+    # The parent does not wait forever: a child that does not answer is
+    # left, and its ranges computed here.
+    wait = max(WAIT_SECONDS, WAIT_FACTOR * (time.perf_counter() - t0)) if twin.leader else None
     try:
-        other = twin.exchange(payload)
+        other = twin.exchange(payload, wait)
     except TwinLost:
         twin.end()              # the child exits here; the parent kills it
         return parts, results + [fn(a, b) for a, b in theirs]

@@ -4,6 +4,7 @@ are those of one process; failures on either side end in an exception or in
 the parent computing alone, never in a lost range or a leftover process."""
 
 import os
+import time
 
 import numpy as np
 import pytest
@@ -76,6 +77,30 @@ def test03_a_child_that_dies_leaves_the_parent_to_finish_alone(workers):
         first = np.concatenate(workers.map(fn, N))
         second = np.concatenate(workers.map(fn, N))     # alone from here on
     assert np.array_equal(first, np.arange(N)) and np.array_equal(second, np.arange(N))
+
+
+def test03b_a_child_that_hangs_is_left_and_the_parent_finishes_alone(workers, monkeypatch):
+    """A child stuck in a pass (a lock another thread held at the fork) never
+    answers: the parent waits WAIT_SECONDS, then computes its ranges too,
+    and the child is killed."""
+    monkeypatch.setattr(forked, "WAIT_SECONDS", 1.0)
+    pids = []
+
+    def fn(a, b):
+        twin = forked.active()
+        if a > 0 and twin is not None and not twin.leader:
+            time.sleep(3600)
+        if twin is not None and twin.leader:
+            pids.append(twin.pid)
+        return np.arange(a, b)
+
+    t = time.perf_counter()
+    with workers.twin(N):
+        first = np.concatenate(workers.map(fn, N))
+        second = np.concatenate(workers.map(fn, N))
+    assert np.array_equal(first, np.arange(N)) and np.array_equal(second, np.arange(N))
+    assert 1.0 <= time.perf_counter() - t < 30.0
+    assert pids and pids[0] is not None and gone(pids[0])
 
 
 def test04_an_exception_in_the_parent_ends_the_child(workers):
