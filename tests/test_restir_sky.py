@@ -162,7 +162,11 @@ def test06_a_share_of_frames_casting_keeps_the_mean():
     idx = np.tile(np.arange(len(surf)), 200)
     gb = SimpleNamespace(index=np.arange(len(idx)), offset=0, surf=surf.subset(idx), frame=frame.subset(idx))
     plan = (np.tile([1, 4, 1], 200), np.tile(np.float32([0.25, 1.0, 0.5]), 200))
-    runs = np.stack([visible_sky_light(ctx, gb, 3, f, plan, 4, [None]) for f in range(120)])
+
+    def frame_of(f):        # (reads ctx and gb when called: the second scene's below)
+        return visible_sky_light(ctx, gb, 3, f, hash_keys(3, f, np.arange(len(idx))), plan, 4, [None])
+
+    runs = np.stack([frame_of(f) for f in range(120)])
     per_point = runs.reshape(-1, 200, len(surf), 3).mean(axis=(0, 1))
     se = runs.reshape(-1, len(surf), 3).std(axis=0, ddof=1) / np.sqrt(runs.shape[0] * 200)
     z = (per_point - ref) / (se + 1e-9)
@@ -170,8 +174,7 @@ def test06_a_share_of_frames_casting_keeps_the_mean():
     ctx.close()
     ctx, surf, frame = scene_and_points(wall=False)     # every ray open: nonzero = cast
     gb = SimpleNamespace(index=np.arange(len(idx)), offset=0, surf=surf.subset(idx), frame=frame.subset(idx))
-    cast = np.mean([(visible_sky_light(ctx, gb, 3, f, plan, 4, [None])[:, 2] > 0).reshape(200, 3).mean(axis=0)
-                    for f in range(20)], axis=0)
+    cast = np.mean([(frame_of(f)[:, 2] > 0).reshape(200, 3).mean(axis=0) for f in range(20)], axis=0)
     np.testing.assert_allclose(cast, [0.25, 1.0, 0.5], atol=0.015)
     ctx.close()
 

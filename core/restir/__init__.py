@@ -262,7 +262,7 @@ class ReSTIRGI:
             glossy /= max(1, settings.samples)
             share = np.where(prev >= 0, history.sky_share[np.maximum(prev, 0)], np.nan) \
                 if sky_on and history is not None and history.sky_share is not None else np.full(b - a, np.nan)
-            sky = visible_sky_light(ctx, part, settings.seed, frame,
+            sky = visible_sky_light(ctx, part, settings.seed, frame, seeds[a:b][part.index],
                                     point_plan(settings.sky_samples, share[part.index]), settings.sky_samples,
                                     [self.frames * per_frame + s if along else None for s in range(per_frame)])
             scatter_add(direct, part.index, sky)

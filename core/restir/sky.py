@@ -13,8 +13,9 @@ error was the sky light carried by reservoirs; docs/plan.md).
 So each visible point with a diffuse lobe casts cosine-weighted occlusion
 rays toward the world each frame (4 where the sky gave at least a tenth of
 the light around the pixel last frame, else one in half of the frames:
-point_plan): diffuse x L_world(wi) x V(wi) averaged over them is the diffuse lobe's world light, without bias (f cos /
-pdf of a Lambert lobe under cosine sampling is its colour). The world's
+point_plan): diffuse x L_world(wi) x V(wi) averaged over them is the
+diffuse lobe's world light, without bias (f cos / pdf of a Lambert lobe
+under cosine sampling is its colour). The world's
 share that the points' NEE already takes (an HDRI's bright regions:
 initial.world_share) is left out, as for the sky samples this replaces. On
 a still view a pixel's rays follow its own Sobol points over the frames of
@@ -26,7 +27,8 @@ query (no hit record, no shading at the far end).
 import numpy as np
 
 from .. import samplers
-from ..accel import offset_origins
+from ..analytic_lights import INF_DIST
+from ..integrators.base import shadow_rays
 from ..rows import gather, row_max, scale, scatter
 from ..sampling import dot, square_to_cosine_hemisphere, to_world
 from .initial import world_share
@@ -86,8 +88,8 @@ def sky_light(ctx, surf, frame, count, keys=None, stream_index=None, seeds=None,
     live = np.nonzero(row_max(radiance) > 0)[0]
     if len(live) == 0:
         return out
-    o = offset_origins(gather(surf.p, rep[live]), gather(ng, live), gather(wi, live), ctx.eps)
-    blocked = ctx.accel.occluded(o, gather(wi, live), np.full(len(live), np.inf, np.float32))
+    blocked = ctx.accel.occluded(*shadow_rays(ctx, gather(surf.p, rep[live]), gather(ng, live), gather(wi, live),
+                                              np.full(len(live), INF_DIST, np.float32)))
     open_ = live[~blocked]
     for c in range(3):
         out[:, c] = np.bincount(rep[open_], weights=radiance[open_, c], minlength=n)
@@ -118,10 +120,11 @@ def point_plan(sky_samples, share):
     return counts, keep.astype(np.float32)
 
 
-def visible_sky_light(ctx, gb, seed, frame, plan, run, stream_indices):
+def visible_sky_light(ctx, gb, seed, frame, seeds, plan, run, stream_indices):
     """(len(gb.index), 3) the sky light of the visible points of G-buffer
     range gb, averaged over one estimate per entry of stream_indices (each
-    the point of the pixels' Sobol sequences, or None for hashed rays),
+    the point of the pixels' Sobol sequences, keyed by seed and pixel, or
+    None for rays hashed from ``seeds``, the visible points' path seeds),
     with ``plan`` = point_plan(...) of those points and ``run`` the largest
     count of any frame (the pixels' Sobol runs). A point casts in a share
     ``keep`` of the frames where frac(pixel x golden ratio + r) < keep, r
@@ -137,15 +140,15 @@ def visible_sky_light(ctx, gb, seed, frame, plan, run, stream_indices):
     if rows is not None:
         if len(rows) == 0:
             return out
-        pixels, counts, keep = pixels[rows], counts[rows], keep[rows]
+        pixels, counts, keep, seeds = pixels[rows], counts[rows], keep[rows], seeds[rows]
     surf = gb.surf if rows is None else gb.surf.subset(rows)
     sh = gb.frame if rows is None else gb.frame.subset(rows)
-    keys = samplers.hash_keys(seed, pixels, SKY_SAMPLE)
-    seeds = samplers.path_seeds(seed, frame, pixels, 0)
+    keys = samplers.hash_keys(seed, pixels, SKY_SAMPLE) \
+        if any(i is not None for i in stream_indices) else None
     total = np.zeros((len(pixels), 3), np.float32)
     for s, index in enumerate(stream_indices):
-        total += sky_light(ctx, surf, sh, counts, keys=keys, stream_index=index,
-                           seeds=samplers.hash_keys(seeds, s), run=run)
+        total += sky_light(ctx, surf, sh, counts, keys=keys, stream_index=index, run=run,
+                           seeds=None if index is not None else samplers.hash_keys(seeds, SKY_SAMPLE, s))
     total = scale(total, 1.0 / (keep * len(stream_indices))).astype(np.float32)
     return total if rows is None else scatter(out, rows, total)
 

@@ -41,7 +41,8 @@ class FrameHistory:
     spatial: StoredReservoirs   # (the temporal ones without spatial reuse)
     noise_hold: np.ndarray = None   # (P,) int8 frames left of "direct light noisy" (adaptive_direct)
     visibility: np.ndarray = None   # (P,) int8 spatial samples' visibility states (shading.py)
-    sky_share: np.ndarray = None    # (P,) float16 the sky rays' share of each pixel's direct light (sky.py)
+    sky_share: np.ndarray = None    # (P,) float16 the sky rays' share of the light around each pixel
+                                    # (sky.pixel_shares)
     accumulation: object = None     # running means of the shaded frames (accumulation.py)
     # Where each reservoir's sample was drawn from, as carried by
     # carry_with_objects (None: the visible points p).
