@@ -75,7 +75,7 @@ class RestirGISceneSettings(bpy.types.PropertyGroup):
         description="Neighbouring pixels whose reservoirs each pixel reuses per frame",
     )
     spatial_radius: FloatProperty(
-        name="Spatial Radius", default=8.0, min=1.0, soft_max=64.0, max=512.0, subtype="PIXEL",
+        name="Spatial Radius", default=16.0, min=1.0, soft_max=64.0, max=512.0, subtype="PIXEL",
         description="Radius in pixels within which spatial neighbours are chosen",
     )
     light_samples: IntProperty(

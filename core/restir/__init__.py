@@ -68,9 +68,8 @@ class ReSTIRSettings:
                                     # 1-3 % lower everywhere, courtyard 13-17 % (docs/plan.md)
     max_age: int = 30
     spatial_neighbors: int = 4
-    spatial_radius: float = 8.0     # pixels; 16 before: neighbours nearer alike, 32 frames'
-                                    # MSE on the corpus's still cameras -1 to -30 % (courtyard),
-                                    # moving -15 to +4 % (room, biased) (docs/plan.md)
+    spatial_radius: float = 16.0    # pixels; 8 lowered stills' MSE (-1 to -30 %) but turned a
+                                    # moving view's fine noise into crawling blotches (docs/plan.md)
     validation_interval: int = 4    # frames; 0 turns validation off
     boiling_filter: float = 0.2     # strength (boiling.py), biased mode only; 0 turns it off
     light_samples: int = 4          # shadow rays for the direct light of visible points in
