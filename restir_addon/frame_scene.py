@@ -101,7 +101,7 @@ class FrameScene(SceneSync):
             self.work.material_updates += len(animated)
             self._queue(materials=self._materials.snapshot())
         self._walk(depsgraph, None, None, compare=True)
-        env = self._read_world(scene)
+        env = self._read_world(depsgraph)
         if env is not None:
             self.work.world_updates += 1
             self._queue(world=env)

@@ -17,7 +17,7 @@ from .export.lights import is_supported, light_row, row_signature
 from .export.materials import MaterialTable
 from .export.mesh import GEOMETRY_TYPES, unrendered
 from .export.object_attributes import object_attributes, split_needs
-from .export.world import export_world
+from .export.world import evaluated_world, export_world
 from .memory import check_geometry
 from .viewport_state import as_update
 from .viewport_sync import _Instance, _mesh_key, _read_object_mesh, _same_camera
@@ -68,7 +68,7 @@ class SceneReader:
         if walk:
             self._walk(depsgraph, reread_objects, reread_data)
         if world or scene_changed:
-            env = self._read_world(scene)
+            env = self._read_world(depsgraph)
             if env is not None:
                 self.work.world_updates += 1
                 self._queue(world=env)
@@ -89,7 +89,7 @@ class SceneReader:
         self._materials = MaterialTable(self.warnings)
         self._light_rows = None
         self._walk(depsgraph, None, None, compare=self._stable_keys)
-        world = self._read_world(scene, force=True)
+        world = self._read_world(depsgraph, force=True)
         self._filter_width_read = float(scene.render.filter_size)
         self._film_read = film_transparent(scene)
         changes = dict(materials=self._materials.snapshot(), world=world,
@@ -236,9 +236,9 @@ class SceneReader:
             self._film_read = film
             self._queue(film_transparent=film)
 
-    def _read_world(self, scene, force=False):
-        """Queue the world's environment if its graph changed (or force)."""
-        graph_sig, build = export_world(scene.world, self._materials.images, self.warnings)
+    def _read_world(self, depsgraph, force=False):
+        """The world's environment if its graph changed (or force), else None."""
+        graph_sig, build = export_world(evaluated_world(depsgraph), self._materials.images, self.warnings)
         if force or graph_sig != self._world:
             self._world = graph_sig
             return (build(),)

@@ -2,7 +2,7 @@
 (restir_addon/frame_scene.py): what changed between two frames is seen, and
 only that is read again.
 
-Each kind of edit is animated (keyframes, a modifier, a frame-change handler
+Each kind of edit is animated (keyframes, a world's strength, a modifier, a frame-change handler
 standing in for a driver that adds and deletes objects); every frame of the
 animation must match a render of that frame from scratch, with Persistent
 Data off (changes found by comparison) and on (Blender's update flags).
@@ -59,7 +59,7 @@ def build_scene(persistent, mode="PATH"):
     scene = fresh(32, 24, samples=2, mode=mode)
     scene.restir_gi.warmup_frames = 2
     scene.render.use_persistent_data = persistent
-    world((0.05, 0.05, 0.05))
+    sky = world((0.05, 0.05, 0.05))
     cam = camera(location=(0, 0, 6), type="ORTHO", ortho_scale=6.0)
     add_mesh("Floor", *rect(-3, 3, -3, 3), mat=_principled("FloorMat", (0.8, 0.8, 0.8)))
     sun = bpy.data.lights.new("Sun", "SUN")
@@ -95,6 +95,8 @@ def build_scene(persistent, mode="PATH"):
     key(array, "count", (1, 2, 3, 4))                             # vertex count changes every frame
     color = tinted.node_tree.nodes["Principled BSDF"].inputs["Base Color"]
     key(color, "default_value", [(0.9, 0.1, 0.1, 1.0), (0.1, 0.9, 0.1, 1.0)] * 2)  # material animated
+    key(sky.node_tree.nodes["Background"].inputs["Strength"], "default_value",
+        (1.0, 4.0, 4.0, 12.0))                                    # world animated
     scene.frame_start, scene.frame_end = FRAMES[0], FRAMES[-1]
     settings = scene.render.image_settings
     settings.file_format = "OPEN_EXR"

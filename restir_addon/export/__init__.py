@@ -11,7 +11,7 @@ from .lights import is_supported, light_row
 from .materials import MaterialTable
 from .mesh import GEOMETRY_TYPES, hair_warning, place, read_corner_data, read_mesh, unrendered
 from .object_attributes import attribute_tables, object_attributes, split_needs
-from .world import export_world
+from .world import evaluated_world, export_world
 
 
 class Warnings:
@@ -187,7 +187,7 @@ def export_scene(depsgraph, width=None, height=None):
     vertices, triangles = cat(verts, (0, 3), np.float32), cat(tris, (0, 3), np.int32)
     per_tri = [cat(mids, (0,), np.int32), cat(normals, (0, 3, 3), np.float32),
                cat(uvs, (0, 3, 2), np.float32), cat(oids, (0,), np.int32)]
-    world = export_world(bscene.world, materials.images, warn)[1]()
+    world = export_world(evaluated_world(depsgraph), materials.images, warn)[1]()
     scene = make_scene(
         vertices, triangles,
         material_ids=per_tri[0],

@@ -4,6 +4,14 @@ from ...core.shader.world import world_environment
 from .node_graph import world_graph
 
 
+def evaluated_world(depsgraph):
+    """The scene's world as the depsgraph evaluated it: its animated values
+    (a keyframed strength, a rotating HDRI's mapping) at this frame. The
+    original datablock keeps the values of the frame the render began on."""
+    world = depsgraph.scene.world
+    return world.evaluated_get(depsgraph) if world is not None else None
+
+
 def export_world(world, images, warn):
     """(signature, build): the world graph's text, to tell whether it changed,
     and a function building its Environment (None for a black world; building
