@@ -235,7 +235,15 @@ class Scene:
         radiance. geometry_key: this scene's, if the caller has it."""
         if self.versions is not None:
             return b"lighting version %d.%d" % tuple(self.versions)
-        arrays = [self.normals, self.material_ids, self.world_color]
+        return _digest([self.normals, self.material_ids], (geometry_key or self.geometry_key())
+                       + self.shading_key())
+
+    def shading_key(self):
+        """A digest of the lights, the materials and the world alone: a change
+        relights every surface, whatever the geometry did in the same frame."""
+        if self.versions is not None:
+            return b"shading version %d" % self.versions[1]
+        arrays = [self.world_color]
         arrays += [getattr(self.materials, f.name) for f in fields(Materials) if f.name != "names"]
         arrays += [getattr(self.lights, f.name) for f in fields(Lights) if f.name != "names"]
         if self.shaders:
@@ -243,7 +251,7 @@ class Scene:
             shapes = sorted((k, getattr(v, "shape", None)) for k, v in self.images.items())
             arrays.append(np.frombuffer(repr((self.shaders, shapes)).encode(), np.uint8))
         world = self.environment.digest() if self.environment is not None else b""
-        return _digest(arrays, (geometry_key or self.geometry_key()) + world)
+        return _digest(arrays, world)
 
 
 def _digest(arrays, prefix=b""):

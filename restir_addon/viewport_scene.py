@@ -45,10 +45,10 @@ class SceneApplier:
         if p.settings:
             self._settings_changed()
         # Change counters instead of hashing the whole scene every frame
-        # (Scene.versions): geometry, and everything that lights a surface.
+        # (Scene.versions): geometry, and the lights, materials and world
+        # (Scene.lighting_key combines the two, Scene.shading_key is the second).
         self._geometry_version += geometry
-        self._lighting_version += geometry or any(
-            x is not None for x in (p.materials, p.lights, p.world))
+        self._lighting_version += any(x is not None for x in (p.materials, p.lights, p.world))
         self._applied_generation = p.generation
         self._build_context(lights_changed)
         self._scene_changed()

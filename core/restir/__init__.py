@@ -127,6 +127,7 @@ class ReSTIRGI:
         self.validations = 0        # sample validations run (skipped while nothing changed)
         self.last_timings = {}      # seconds per pass of the last frame (see render_frame)
         self._lighting_key = None   # Scene.lighting_key of the last frame
+        self._shading_key = None    # Scene.shading_key of the last frame
         self._geometry_key = None   # Scene.geometry_key of the last frame
         self._stale = False         # the lighting changed since the last validation
         self._light_edit = False    # lights, materials or world changed since the last validation
@@ -194,18 +195,22 @@ class ReSTIRGI:
         # gives exactly its stored radiance.
         accumulating = settings.accumulate > 1
         # What the pixels' running means forget (accumulation.py): everything
-        # after an edit of lights, materials or the world (the lighting key
-        # changed with the geometry as it was), and again when validation
-        # brings the stored samples up to date with that edit; all but the
-        # last MOVING_CAP frames when objects moved or samples were validated
-        # after objects moved (local changes: shadows, reflections).
+        # after an edit of lights, materials or the world (in the same frame
+        # as objects moved too: the lights' edit lit the whole image anew),
+        # and again when validation brings the stored samples up to date with
+        # that edit; all but the last MOVING_CAP frames when objects moved or
+        # samples were validated after objects moved (local changes: shadows,
+        # reflections).
         forget_all = forget_old = False
         if settings.validation_interval > 0 or accumulating:
             key = scene.lighting_key(geometry_key)
             relit = self._lighting_key is not None and key != self._lighting_key
             self._stale |= relit
             self._lighting_key = key
-            forget_all = relit and not moved
+            shading_key = scene.shading_key()
+            reshaded = self._shading_key is not None and shading_key != self._shading_key
+            self._shading_key = shading_key
+            forget_all = (relit and not moved) or reshaded
             self._light_edit |= forget_all
             forget_old = moved
         if settings.validation_interval > 0:
