@@ -28,7 +28,8 @@ class CombinedArrays:
     def __init__(self):
         self.arrays = None
         self._layout = {}       # key -> (v0, v1, t0, t1) rows in the combined arrays
-        self._placed = {}       # key -> (positions, normals, face normals) in world space
+        self._placed = {}       # key -> viewport_sync._placed: (positions, normals, face normals,
+                                # triangles, uvs) in world space
         self._bounds = np.zeros((0, 2, 3), np.float32)  # per object id: (lo, hi) of its vertices
         self._has_vertices = np.zeros(0, bool)
 
@@ -51,10 +52,10 @@ class CombinedArrays:
             v0, v1, t0, t1 = self._layout[key]
             it = instances[key]
             if key in changed:
-                pos, nrm, fn = self._place(key, it)
+                pos, nrm, fn, tris, uvs = self._place(key, it)
                 a["vertices"][v0:v1], a["normals"][t0:t1], a["face_normals"][t0:t1] = pos, nrm, fn
-                a["triangles"][t0:t1] = it.mesh.triangles + v0
-                a["uvs"][t0:t1] = it.mesh.uvs
+                a["triangles"][t0:t1] = tris + v0
+                a["uvs"][t0:t1] = uvs
                 oid = a["keys"].index(key)
                 a["matrices"][oid] = it.matrix
                 if len(pos):
@@ -104,10 +105,10 @@ class CombinedArrays:
         layout, keys, matrices = {}, [], []
         v_off = t_off = 0
         for oid, (key, it) in enumerate(instances.items()):
-            pos, nrm, fn = self._place(key, it)
-            nv, nt = len(pos), len(it.mesh.triangles)
-            for name, value in (("vertices", pos), ("triangles", it.mesh.triangles + v_off),
-                                ("normals", nrm), ("uvs", it.mesh.uvs), ("material_ids", _material_ids(it)),
+            pos, nrm, fn, tris, uvs = self._place(key, it)
+            nv, nt = len(pos), len(tris)
+            for name, value in (("vertices", pos), ("triangles", tris + v_off),
+                                ("normals", nrm), ("uvs", uvs), ("material_ids", _material_ids(it)),
                                 ("object_ids", np.full(nt, oid, np.int32)), ("face_normals", fn)):
                 parts[name].append(value)
             layout[key] = (v_off, v_off + nv, t_off, t_off + nt)

@@ -13,7 +13,8 @@ import numpy as np
 
 from ..core.scene import Camera
 from .export.camera import depth_of_field
-from .export.mesh import MeshData, hair_warning, place, read_corner_data, read_mesh, triangle_cross, unit_rows
+from .export.mesh import (MeshData, hair_warning, place, placed_triangles, read_corner_data, read_mesh,
+                          triangle_cross, unit_rows)
 
 
 @dataclass
@@ -104,24 +105,27 @@ def _face_normals(pos, tris):
 
 
 def _placed(inst):
-    """World-space (positions, corner normals, face normals) of an instance;
-    face normals from the object-space ones where the mesh has them (the
-    normal matrix keeps them exact up to rounding)."""
+    """World-space (positions, corner normals, face normals, triangles, uvs)
+    of an instance, corners in export.mesh.placed_triangles' order (0, 2, 1
+    where its matrix mirrors); face normals from the object-space ones where
+    the mesh has them (the normal matrix keeps them exact up to rounding)."""
     mesh = inst.mesh
     pos, nrm = place(mesh, inst.matrix)
+    tris, uvs = placed_triangles(mesh, inst.matrix)
     if not np.isfinite(nrm).all():
         nrm = np.where(np.isfinite(nrm), nrm, 0.0).astype(np.float32)
     if mesh.face_normals is None or len(mesh.face_normals) != len(mesh.triangles):
-        return pos, nrm, _face_normals(pos, mesh.triangles)
+        return pos, nrm, _face_normals(pos, tris), tris, uvs
     linear = np.asarray(inst.matrix, np.float64)[:3, :3]
     if np.array_equal(linear, np.eye(3)):
-        return pos, nrm, mesh.face_normals
+        return pos, nrm, mesh.face_normals, tris, uvs
     det = np.linalg.det(linear)
     if not np.isfinite(det) or abs(det) < 1e-30:
-        return pos, nrm, _face_normals(pos, mesh.triangles)
-    # cross(Ma, Mb) = det(M) M^-T cross(a, b)
-    nm = (np.sign(det) * np.linalg.inv(linear).T).astype(np.float32)
-    return pos, nrm, unit_rows(mesh.face_normals @ nm.T)
+        return pos, nrm, _face_normals(pos, tris), tris, uvs
+    # cross(Ma, Mb) = det(M) M^-T cross(a, b): a mirror (det < 0) turns the
+    # winding normal into the object, and the swapped corners turn it back.
+    nm = np.linalg.inv(linear).T.astype(np.float32)
+    return pos, nrm, unit_rows(mesh.face_normals @ nm.T), tris, uvs
 
 
 def camera_from_view(view_matrix, window_matrix):

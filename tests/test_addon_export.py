@@ -9,6 +9,7 @@ arrays, so nothing depends on the startup file or on other tests.
 import math
 
 import numpy as np
+import pytest
 
 from export_util import (H, QUAD, TRI, W, add_light, add_mesh, apply, area, export,  # noqa: F401
                          export_for_render, fresh, grid, light, material, row, trs,
@@ -40,6 +41,45 @@ def test_mesh_triangles_in_world_space(addon):
     ng /= np.linalg.norm(ng, axis=1, keepdims=True)
     for corner in range(3):
         np.testing.assert_allclose(np.einsum("ij,ij->i", s.normals[:, corner], ng), 1.0, atol=1e-5)
+
+
+BOX = (np.array([[x, y, z] for z in (-1, 1) for y in (-1, 1) for x in (-1, 1)], np.float64),
+       [[0, 2, 3, 1], [4, 5, 7, 6], [0, 1, 5, 4], [2, 6, 7, 3], [0, 4, 6, 2], [1, 3, 7, 5]])
+
+
+def _outward(s, name, centre):
+    """Per triangle of an object: its winding normal and its corner normals
+    against the direction from the object's centre to the triangle's."""
+    p = tri_points(s, name)
+    ng = np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0])
+    out = p.mean(axis=1) - centre
+    ids = [i for i, n in enumerate(s.object_names) if n == name]
+    ns = s.normals[np.isin(s.object_ids, ids)]
+    return np.einsum("ij,ij->i", ng, out), np.einsum("tcj,tj->tc", ns, out)
+
+
+@pytest.mark.parametrize("path", ["export", "render"])
+def test_mirrored_objects_keep_their_faces_outward(addon, monkeypatch, path):
+    """Under a negative scale (one axis or three) the placed triangles wind
+    the other way; their corners are taken 0, 2, 1 so that winding normal
+    and corner normals both point out of the box (as Cycles does), in the
+    one-shot export and in the render's kept scene. Otherwise smooth
+    mirrored meshes shaded faceted and mirrored glass refracted inside out."""
+    fresh()
+    centres = {"plain": (0, 0, 0), "mirror_x": (4, 0, 0), "mirror_xyz": (8, 0, 0)}
+    scales = {"plain": (1, 1, 1), "mirror_x": (-1, 2, 1), "mirror_xyz": (-1, -1, -1)}
+    for name, c in centres.items():
+        add_mesh(name, *BOX, location=c, scale=scales[name])
+    s = export(addon) if path == "export" else export_for_render(addon, monkeypatch)
+    for name, c in centres.items():
+        winding, corners = _outward(s, name, np.asarray(c, np.float32))
+        assert len(winding) == 12, name
+        assert (winding > 0).all(), name
+        assert (corners > 0).all(), name
+        if s.face_normals is not None:
+            fn = s.face_normals[np.isin(s.object_ids, [i for i, n in enumerate(s.object_names) if n == name])]
+            p = tri_points(s, name)
+            assert (np.einsum("ij,ij->i", fn, p.mean(axis=1) - np.float32(c)) > 0).all(), name
 
 
 def test_modifiers_are_applied(addon):

@@ -9,7 +9,8 @@ from ...core.materials import shading
 from .camera import export_camera, render_size
 from .lights import is_supported, light_row
 from .materials import MaterialTable
-from .mesh import GEOMETRY_TYPES, hair_warning, place, read_corner_data, read_mesh, unrendered
+from .mesh import (GEOMETRY_TYPES, SWAP, hair_warning, mirrors, place, placed_triangles, read_corner_data, read_mesh,
+                   unrendered)
 from .object_attributes import attribute_tables, object_attributes, split_needs
 from .world import evaluated_world, export_world
 
@@ -159,11 +160,12 @@ def export_scene(depsgraph, width=None, height=None):
             continue
         mesh, corner = entry
         pos, nrm = place(mesh, inst.matrix_world)
+        placed_tris, placed_uvs = placed_triangles(mesh, inst.matrix_world)
         slots = np.clip(mesh.slots, 0, len(slot_ids) - 1)
         verts.append(pos)
-        tris.append(mesh.triangles + offset)
+        tris.append(placed_tris + offset)
         normals.append(nrm)
-        uvs.append(mesh.uvs)
+        uvs.append(placed_uvs)
         corners.append(placed_corners(corner, inst.matrix_world))
         mids.append(slot_ids[slots])
         key = instance_key(inst, obj)
@@ -223,18 +225,24 @@ def export_scene(depsgraph, width=None, height=None):
 
 
 def placed_corners(corner, matrix):
-    """Corner data of one placed instance: tangents (read in object space)
-    turned into world space by the instance's matrix; the rest unchanged."""
+    """Corner data of one placed instance, corners in placed_triangles'
+    order: tangents (read in object space) turned into world space by the
+    instance's matrix, their bitangent sign flipped where it mirrors (the
+    bitangent is the sign times cross(normal, tangent), and a mirror turns
+    that cross product around); the rest unchanged."""
+    flip = mirrors(matrix)
     keys = [k for k in corner if k.startswith("tangent:")]
-    if not keys:
+    if not keys and not flip:
         return corner
     m = np.asarray(matrix, np.float32)[:3, :3]
-    out = dict(corner)
+    out = {k: (v[:, SWAP] if flip else v) for k, v in corner.items()}
     for k in keys:
-        t = corner[k].copy()
+        t = out[k].copy()
         v = t[..., :3] @ m.T
         length = np.linalg.norm(v, axis=-1, keepdims=True)
         t[..., :3] = v / np.where(length > 0, length, 1)
+        if flip:
+            t[..., 3] = -t[..., 3]
         out[k] = t
     return out
 

@@ -205,8 +205,31 @@ def unit_rows(v):
     return (v / np.maximum(length, 1e-30)[:, None]).astype(np.float32, copy=False)
 
 
+SWAP = [0, 2, 1]     # a triangle's corners with the second and third swapped
+
+
+def mirrors(matrix):
+    """Whether a 4x4 matrix turns space inside out (negative determinant, a
+    negative scale on one or three axes): a placed triangle's corners then
+    wind the other way round, and its winding normal points into the
+    object. Placed triangles of such instances take their corners in the
+    order 0, 2, 1 (as Cycles does), so winding, face normal and the corner
+    normals all point out again."""
+    linear = np.asarray(matrix, np.float64)[:3, :3]
+    return bool(np.linalg.det(linear) < 0)
+
+
+def placed_triangles(mesh, matrix):
+    """(triangles, uvs) of a mesh as placed under a matrix: corners 0, 2, 1
+    where it mirrors."""
+    if mirrors(matrix):
+        return mesh.triangles[:, SWAP], mesh.uvs[:, SWAP]
+    return mesh.triangles, mesh.uvs
+
+
 def place(mesh, matrix):
-    """World-space positions and normals of a mesh under a 4x4 matrix. A
+    """World-space positions and corner normals of a mesh under a 4x4 matrix
+    (corners in placed_triangles' order). A
     matrix without rotation or scale (the common case of big static meshes)
     only translates; normals are transformed in float32, renormalised only
     where the matrix is not a rotation times a uniform scale."""
@@ -226,4 +249,5 @@ def place(mesh, matrix):
     else:
         length = np.sqrt(np.einsum("ij,ij->i", n, n))[:, None]
         n /= np.where(length > 0, length, 1)
-    return pos, n.reshape(-1, 3, 3).astype(np.float32, copy=False)
+    n = n.reshape(-1, 3, 3).astype(np.float32, copy=False)
+    return pos, (n[:, SWAP] if mirrors(m) else n)
