@@ -125,14 +125,15 @@ class ObjectMotion:
 
 
 def _move_rows(m, rows, points=(), directions=(), normals=()):
-    """Apply the 4x4 m to the given rows of point, direction and normal arrays, in place."""
-    lin = m[:3, :3]
-    normal_m = np.linalg.inv(lin).T
+    """Apply the (K, 4, 4) matrices m, one per row index in ``rows``, to
+    those rows of point, direction and normal arrays, in place."""
+    lin = m[:, :3, :3]
+    normal_m = np.transpose(np.linalg.inv(lin), (0, 2, 1))
     for a in points:
-        a[rows] = (a[rows].astype(np.float64) @ lin.T + m[:3, 3]).astype(np.float32)
+        a[rows] = (np.einsum("kij,kj->ki", lin, a[rows].astype(np.float64)) + m[:, :3, 3]).astype(np.float32)
     for mat, group in ((lin, directions), (normal_m, normals)):
         for a in group:
-            v = a[rows].astype(np.float64) @ mat.T
+            v = np.einsum("kij,kj->ki", mat, a[rows].astype(np.float64))
             a[rows] = (v / np.maximum(np.linalg.norm(v, axis=1, keepdims=True), 1e-30)).astype(np.float32)
 
 
@@ -156,21 +157,27 @@ def carry_with_objects(scene, history):
     if history.spatial is not history.temporal \
             and not np.shares_memory(history.spatial.x2, history.temporal.x2):
         sets.append(history.spatial)
+    # Each object's last frame -> current matrix, read per sample by the
+    # object its triangle belongs to (all moved objects in one pass).
+    ids = np.fromiter(moved, np.int64, len(moved))
+    to_cur = np.linalg.inv(np.stack([moved[i][1] for i in ids]))
+    slot = np.full(len(scene.object_keys), -1, np.int64)
+    slot[ids] = np.arange(len(ids))
     count = 0
     owners = []
     for res in sets:
         owner = history.p.copy()
-        for i, (j, to_prev) in moved.items():
-            to_cur = np.linalg.inv(to_prev)
-            on = np.nonzero((res.prim2 >= 0) & (np.take(scene.object_ids, np.maximum(res.prim2, 0)) == i))[0]
-            if len(on):
-                moving = res.take(on)
-                every = np.arange(len(on))
-                _move_rows(to_cur, every, points=(moving.x2,), directions=(moving.wo2,),
-                           normals=(moving.ng2, moving.n2))
-                res.put(on, moving)
-                _move_rows(to_cur, on, points=(owner,))
-                count += len(on)
+        oid = np.take(scene.object_ids, np.maximum(res.prim2, 0))
+        which = np.where(res.prim2 >= 0, slot[oid], -1)
+        on = np.nonzero(which >= 0)[0]
+        if len(on):
+            m = to_cur[which[on]]
+            moving = res.take(on)
+            every = np.arange(len(on))
+            _move_rows(m, every, points=(moving.x2,), directions=(moving.wo2,), normals=(moving.ng2, moving.n2))
+            res.put(on, moving)
+            _move_rows(m, on, points=(owner,))
+            count += len(on)
         owners.append(owner)
     history.temporal_owner = owners[0]
     history.spatial_owner = owners[-1]
