@@ -82,6 +82,26 @@ def test_mirrored_objects_keep_their_faces_outward(addon, monkeypatch, path):
             assert (np.einsum("ij,ij->i", fn, p.mean(axis=1) - np.float32(c)) > 0).all(), name
 
 
+def test_flat_non_planar_faces_shade_by_each_triangle(addon):
+    """A mesh of flat faces only shades each triangle by its own normal, as
+    Cycles does (a non-planar quad shows its crease); once a face is smooth
+    the corner normals are Blender's (the flat quad's the polygon's)."""
+    import bpy
+    fresh()
+    ob = add_mesh("bent", [(-1, -1, 0), (1, -1, 0), (1, 1, 1.5), (-1, 1, 0)], [[0, 1, 2, 3]])
+    s = export(addon)
+    p = tri_points(s)
+    ng = np.cross(p[:, 1] - p[:, 0], p[:, 2] - p[:, 0])
+    ng /= np.linalg.norm(ng, axis=1, keepdims=True)
+    assert np.einsum("ij,ij->i", ng[0:1], ng[1:2])[0] < 0.95      # the quad is bent
+    for corner in range(3):
+        np.testing.assert_allclose(np.einsum("ij,ij->i", s.normals[:, corner], ng), 1.0, atol=1e-5)
+    ob.data.polygons[0].use_smooth = True
+    ob.data.update()
+    s = export(addon)
+    assert np.abs(np.einsum("ij,ij->i", s.normals[:, 0], ng) - 1.0).max() > 1e-3
+
+
 def test_modifiers_are_applied(addon):
     fresh()
     arr = add_mesh("array", *QUAD)

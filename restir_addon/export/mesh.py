@@ -68,8 +68,14 @@ def read_mesh(me):
     corner_vert = _get(me.attributes[".corner_vert"].data, "value", np.int32, 1, len(me.loops))
     tri_vert = corner_vert[loops] if nt else np.zeros((0, 3), np.int32)
     nl = len(me.loops)
-    cn = _get(me.corner_normals, "vector", np.float32, 3, nl) if nl else np.zeros((0, 3), np.float32)
-    normals = cn[loops] if nt else np.zeros((0, 3, 3), np.float32)
+    if getattr(me, "normals_domain", "CORNER") == "FACE":
+        # Every face flat: Cycles shades each triangle by its own normal (a
+        # non-planar quad shows its crease), not by its polygon's.
+        ng = unit_rows(triangle_cross(pos, tri_vert))
+        normals = np.repeat(ng[:, None, :], 3, axis=1)
+    else:
+        cn = _get(me.corner_normals, "vector", np.float32, 3, nl) if nl else np.zeros((0, 3), np.float32)
+        normals = cn[loops]
     render_uv = _render_uv_layer(me)
     if render_uv is not None and nl:
         uv = _get(render_uv.uv, "vector", np.float32, 2, nl)
