@@ -39,7 +39,7 @@ class SceneShading:
         for i, graph in enumerate(shaders[:m]):
             if graph is None:
                 continue
-            shader = CompiledShader(graph, scene.images, warn)
+            shader = CompiledShader(graph, scene.images, _named(warn, graph.name))
             closure = shader.closure(one) if shader.uniform else None
             if closure is not None and not _needs_hits(closure):
                 row = params_of(closure, 1)
@@ -74,6 +74,11 @@ class SceneShading:
         # Graphs reading Light Path: camera rays see them evaluated as camera rays.
         self.camera_ids = [i for i in self.varying
                            if any(node.kind == "LIGHT_PATH" for node in shaders[i].nodes)]
+
+
+def _named(warn, name):
+    """warn, with the material's name in front of the text."""
+    return (lambda text: warn(f"Material '{name}': {text}")) if name else warn
 
 
 def params_of(closure, n):

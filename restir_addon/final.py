@@ -300,7 +300,8 @@ def _render_view(engine, depsgraph, view, report=True):
         if core_scene.triangle_count == 0:
             engine.report({"WARNING"}, "The scene has no geometry to render")
         emissive = len(ctx.lights.tri_index) > 0
-        if not (len(core_scene.lights) or scene_environment(core_scene) is not None or emissive):
+        lit = len(core_scene.lights) and bool((np.asarray(core_scene.lights.power) > 0).any())
+        if not (lit or scene_environment(core_scene) is not None or emissive):
             engine.report({"WARNING"}, "The scene has no light source (no lights, emissive "
                                        "materials or world light): the image is black")
         read_s, apply_s = frame_scene.timings

@@ -105,6 +105,24 @@ def test_unsupported_node_warns_once(addon, node_type, label):
     np.testing.assert_allclose(r["emission"], 0)
 
 
+def test_subsurface_says_it_renders_as_diffuse(addon):
+    """Subsurface scattering (a Principled BSDF's weight, or its own node)
+    renders as diffuse reflection and says so once, naming the material;
+    a Principled BSDF without it says nothing. Every material warning
+    starts with the material's name the same way."""
+    fresh()
+    for i, mat in enumerate((material("skin", Subsurface_Weight=0.5), material("plain"),
+                             material("wax", "ShaderNodeSubsurfaceScattering"))):
+        ob = add_mesh(f"obj{i}", *QUAD, location=(2 * i, 0, 0))
+        ob.data.materials.append(mat)
+    s = export(addon)
+    assert sorted(s.warnings) == [
+        "Material 'skin': node 'Principled BSDF': subsurface scattering renders as diffuse reflection of "
+        "its colour",
+        "Material 'wax': node 'Subsurface Scattering': subsurface scattering renders as diffuse "
+        "reflection of its colour"], s.warnings
+
+
 def test_textured_inputs_are_evaluated(addon):
     """A texture feeding an input is evaluated on the hits: the material is no
     longer one row, and nothing warns about it."""

@@ -108,10 +108,17 @@ def test_engine_without_camera_reports_error_and_black(addon):
 
 @pytest.mark.parametrize("mode", MODES)
 def test_no_lights_black_world_renders_black(addon, reports, tmp_path, mode):
+    """No light source, or only a lamp of no power: black, and it says why."""
+    import bpy
     scene = fresh(mode=mode)
     camera()
     world((0, 0, 0))
     add_mesh("Plane", *rect(-5, 5, -5, 5), mat=diffuse_material("White", (0.8, 0.8, 0.8)))
+    if mode != "PATH":
+        lamp = bpy.data.objects.new("Off", bpy.data.lights.new("Off", "POINT"))
+        lamp.data.energy = 0.0
+        lamp.location = (0, 0, 2)
+        scene.collection.objects.link(lamp)
     render_exr(scene, tmp_path / "dark.exr")
     img = read_exr(tmp_path / "dark.exr")
     assert_valid(img, (32, 32))

@@ -170,8 +170,8 @@ class CompiledShader:
         self.uniform = not any(EVALUATORS.get(n.kind) in VARYING for n in graph.nodes)
 
     def warn(self, text):
-        name = self.graph.name
-        self._warn(f"{name}: {text}" if name else text)
+        """Through the caller's warn, which names the material, world or light."""
+        self._warn(text)
 
     def warn_once(self, key, text):
         if key not in self._warned:

@@ -300,7 +300,15 @@ class _Translator:
             props = {}
         index = self.index[key] = self.graph.add(Node(node.type, inputs, props, name))
         self.note_needs(node, inputs)
+        self.note_approximations(node, inputs, name)
         return index
+
+    def note_approximations(self, node, inputs, name):
+        """Warn about what a node renders only in part (as the README lists)."""
+        weight = inputs.get("Subsurface Weight") if node.type == "BSDF_PRINCIPLED" else None
+        if node.type == "SUBSURFACE_SCATTERING" or (weight is not None and (
+                not isinstance(weight, (int, float)) or weight > 0)):
+            self.warn(f"node '{name}': subsurface scattering renders as diffuse reflection of its colour")
 
     def reader_value(self, socket, scope, name):
         """What Node.inputs holds for input `socket` of the node called `name`:
