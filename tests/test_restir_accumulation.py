@@ -344,3 +344,52 @@ def test14_depth_of_field_still_matches_path_tracing():
         assert_same_mean(np.stack(runs).astype(np.float64), ref, "unbiased still, depth of field")
     finally:
         ctx.close()
+
+
+def test15_a_panning_view_leaves_no_wall_over_the_sky():
+    """A view panning past the end of a red wall uncovers the dark sky beside
+    it, at the image's edge: pixels whose centre lay outside last frame's
+    image start over, and pixels without matching history take their
+    neighbourhood's darkest history as one frame, not as all it held. Else
+    the wall's history stayed on the sky for the running mean's 16 frames (a
+    translucent wall trailing the motion)."""
+    from core import Camera, Lights, make_scene
+    from core.scene import LIGHT_POINT
+    from scenes import Builder, quad
+    b = Builder()
+    b.add(*quad((-6, -6, 0), (12, 0, 0), (0, 12, 0)), 0)                 # floor
+    b.add(*quad((-4, -6, 0), (0, 12, 0), (0, 0, 6)), 1)                  # red wall, ends at y = 6
+    mats = Materials.from_list([{"base_color": (0.7, 0.7, 0.7)}, {"base_color": (0.8, 0.1, 0.1)}])
+    lamp = Lights.from_list([{"kind": LIGHT_POINT, "position": (0, 0, 4), "power": (800.0,) * 3}])
+    eye = np.array([0.0, -9.0, 3.5])
+
+    def scene_at(yaw_deg):
+        yaw = math.radians(yaw_deg)
+        target = eye + np.array([-math.sin(yaw), math.cos(yaw), -0.2])
+        cam = Camera(to_world=look_at(eye, target), lens=35.0, sensor_width=36.0)
+        return make_scene(*b.arrays(), mats, lamp, cam, world_color=(0.01, 0.01, 0.01), width=48, height=32)
+
+    settings = ReSTIRSettings(seed=3, max_bounces=2)
+    restir = ReSTIRGI()
+    yaws = np.linspace(20.0, 45.0, 16)          # turning left, toward the wall's far end
+    for f, yaw in enumerate(yaws):
+        ctx = RenderContext.build(scene_at(yaw))
+        try:
+            result = restir.render_frame(ctx, settings, f)
+        finally:
+            ctx.close()
+    still = ReSTIRGI()
+    ctx = RenderContext.build(scene_at(yaws[-1]))
+    try:
+        for f in range(16):
+            ref = still.render_frame(ctx, settings, 100 + f)
+    finally:
+        ctx.close()
+    img, ref_img = result.color.reshape(32, 48, 3), ref.color.reshape(32, 48, 3)
+    sky = luminance(ref_img) < 0.02
+    assert sky.mean() > 0.1                    # the view shows sky beside the wall
+    redness = img[..., 0] - img[..., 1]
+    print(f"sky pixels {sky.mean():.2f}, their redness: mean {redness[sky].mean():.4f}, "
+          f"max {redness[sky].max():.4f}; frame / still {img.mean() / ref_img.mean():.3f}")
+    assert redness[sky].mean() < 0.01, redness[sky].mean()
+    assert abs(img.mean() / ref_img.mean() - 1.0) < 0.05

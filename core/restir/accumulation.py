@@ -114,6 +114,7 @@ class Footprint:
     weights: np.ndarray     # (N, 16) float32 (Catmull-Rom's can be negative)
     exact: bool = False     # every pixel is where it was (a still view of a still scene)
     window: bool = False    # taps are the 4x4 window around each reprojected centre (a moving view)
+    inside: np.ndarray = None   # (N,) bool: the reprojected centre lies in last frame's image
 
     @property
     def found(self):
@@ -274,7 +275,7 @@ def previous_pixels(scene, gb, history, motion=None, still_scene=False, edges=No
     weights[0, alone] = 1.0
     total = np.where(alone, 1.0, total)
     weights *= np.where(ok & (total > 1e-6), 1.0 / np.maximum(total, 1e-6), 0.0)
-    return Footprint(taps.T, np.where(sharp, sharp_weights, weights).T, window=True)
+    return Footprint(taps.T, np.where(sharp, sharp_weights, weights).T, window=True, inside=inside)
 
 
 # Offsets of the 4x4 window from the tap left of and below the centre, inner 2x2 first.
@@ -360,6 +361,19 @@ def accumulate(prev, footprint, direct, indirect, albedo, normal, cap, alpha=1.0
         if hist is None:
             hist = np.zeros_like(new)
         np.clip(hist, lo, hi, out=hist)
+        # That darkest history is a prior of one frame, not of the frames its
+        # pixel held: with their count a wall's history, taken by the sky
+        # uncovered beside it as a view panned, stayed for 16 frames (a
+        # translucent wall trailing the motion: frame 24 of a pan 9 % too
+        # bright). Rows whose centre lay outside last frame's image (their
+        # taps clamped to its border: another part of the scene) start over.
+        lost = ~footprint.found
+        if lost.any():
+            np.minimum(hist[:, 12], np.where(lost, np.float32(1), np.float32(np.inf)), out=hist[:, 12])
+            if footprint.inside is not None:
+                out = lost & ~footprint.inside
+                hist[out] = new[out]
+                hist[out, 12] = 0.0
     if refined is not None and not footprint.exact:
         h_seen = hist[:, 14:17]
         over = luminance(h_seen) > refined.ceiling
