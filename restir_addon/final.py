@@ -66,7 +66,7 @@ def restir_settings(scene):
         initial_sampling=s.initial_sampling, temporal_M_cap=float(s.temporal_m_cap),
         spatial_M_cap=float(s.spatial_m_cap), max_age=s.max_age,
         spatial_neighbors=s.spatial_neighbors, spatial_radius=float(s.spatial_radius),
-        validation_interval=s.validation_interval, light_samples=s.light_samples,
+        validation_interval=s.validation_interval, validate_on_change=True, light_samples=s.light_samples,
         sky_samples=s.sky_samples, boiling_filter=float(s.boiling_filter))
 
 

@@ -134,9 +134,11 @@ class ViewportSession(SceneSync):
         self.max_bounces = max_bounces if isinstance(max_bounces, Bounces) else int(max_bounces)
         self.seed = int(seed)
         base = restir if restir is not None else ReSTIRSettings()
-        # One initial sample per pixel per frame: the viewport favours frame rate.
+        # One initial sample per pixel per frame, and stored samples validated
+        # every validation_interval frames: the viewport favours frame rate.
         self.restir_settings = replace(base, mode=mode if mode != PATH else base.mode,
-                                       max_bounces=self.max_bounces, seed=self.seed, samples=1)
+                                       max_bounces=self.max_bounces, seed=self.seed, samples=1,
+                                       validate_on_change=False)
 
     def configure(self, mode="RESTIR_BIASED", scale=DEFAULT_SCALE, samples=DEFAULT_SAMPLES,
                   idle_frames=DEFAULT_IDLE_FRAMES, frame_budget=DEFAULT_FRAME_BUDGET,

@@ -6,6 +6,8 @@ frames in which the objects stood elsewhere; a still render of the last pose
 has none of that. The two must agree up to noise.
 """
 
+import dataclasses
+
 import numpy as np
 
 from core import Camera, Lights, Materials, RenderContext, make_scene
@@ -136,3 +138,25 @@ def test_a_light_edit_in_the_frame_an_object_moves_relights_every_pixel():
     ratio = float(luminance(anim.color).mean() / luminance(still.color).mean())
     print(f"frame after the edit / still render: {ratio:.3f}")
     assert abs(ratio - 1.0) < 0.05, ratio
+
+
+def test_final_renders_validate_in_the_frame_the_light_changed():
+    """A final render (validate_on_change) re-traces stored samples in the
+    very frame the power of the lamp lighting the floor's patch jumps, not at the next validation interval,
+    and lets them stand for one candidate each: the frames after the jump
+    show the new light as a still render does (15 % dark before, until the
+    interval came round)."""
+    settings = dataclasses.replace(SETTINGS, validate_on_change=True)
+    restir = ReSTIRGI()
+    for f in range(12):
+        ctx = RenderContext.build(scene_with(STANDING, 0.0, patch=True, power=60.0 if f < 9 else 240.0))
+        try:
+            anim = restir.render_frame(ctx, settings, f)
+        finally:
+            ctx.close()
+        if f == 10:
+            mid = anim
+    still, _ = still_render(STANDING, 0.0, patch=True, power=240.0)
+    ratios = [float(luminance(r.color).mean() / luminance(still.color).mean()) for r in (mid, anim)]
+    print(f"frames 10 and 11 after the jump / still render: {ratios[0]:.3f} {ratios[1]:.3f}")
+    assert all(abs(r - 1.0) < 0.04 for r in ratios), ratios
