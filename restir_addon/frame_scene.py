@@ -72,6 +72,7 @@ class FrameScene(SceneSync):
             self.sync(depsgraph)
         elif persistent:
             self.sync(depsgraph, depsgraph.updates)     # what Blender flagged
+            self._refresh_materials(depsgraph, self._sequence_materials())   # (no update flags them)
         else:
             self._sync_compare(depsgraph)
         self._persistent, self._depsgraph = persistent, pointer
@@ -95,17 +96,28 @@ class FrameScene(SceneSync):
 
     def _sync_compare(self, depsgraph):
         scene = depsgraph.scene
-        animated = [m for m in self._animated_materials()
-                    if self._materials.refresh(m, depsgraph)]
-        if animated:
-            self.work.material_updates += len(animated)
-            self._queue(materials=self._materials.snapshot())
+        self._materials.images.frame = scene.frame_current
+        self._refresh_materials(depsgraph, self._animated_materials() + self._sequence_materials())
         self._walk(depsgraph, None, None, compare=True)
         env = self._read_world(depsgraph)
         if env is not None:
             self.work.world_updates += 1
             self._queue(world=env)
         self._read_film(scene)
+
+    def _refresh_materials(self, depsgraph, materials):
+        changed = [m for m in materials if self._materials.refresh(m, depsgraph)]
+        if changed:
+            self.work.material_updates += len(changed)
+            self._queue(materials=self._materials.snapshot())
+
+    def _sequence_materials(self):
+        """Original materials in use with an image sequence, whose file follows the frame."""
+        used = self._materials.index
+        return [mat for mat in bpy.data.materials
+                if mat.as_pointer() in used and mat.node_tree is not None and mat.animation_data is None
+                and (mat.node_tree.animation_data is None)
+                and any(getattr(getattr(n, "image", None), "source", "") == "SEQUENCE" for n in mat.node_tree.nodes)]
 
     def _animated_materials(self):
         """Original materials in use whose values may change with the frame."""

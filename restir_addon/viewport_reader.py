@@ -34,6 +34,7 @@ class SceneReader:
         if self._instances is None or updates is None:
             self._full_export(depsgraph)
             return
+        self._materials.images.frame = scene.frame_current
         updates = [as_update(u) for u in updates]
         walk = False
         reread_objects, reread_data = set(), set()
@@ -87,6 +88,7 @@ class SceneReader:
         self._meshes = {}
         self._instances = {}
         self._materials = MaterialTable(self.warnings)
+        self._materials.images.frame = scene.frame_current
         self._light_rows = None
         self._walk(depsgraph, None, None, compare=self._stable_keys)
         world = self._read_world(depsgraph, force=True)

@@ -300,3 +300,45 @@ def test13_other_colour_spaces_warn(bpy_env, png_rows):
         want = srgb_to_linear(texel.astype(np.float32)) if decode else texel
         np.testing.assert_allclose(got, want, rtol=1e-5)
         assert len(bpy_env.warnings) == 1 and space in bpy_env.warnings[0]
+
+
+@pytest.mark.parametrize("persistent", [False, True], ids=["compare", "persistent"])
+def test14_image_sequences_follow_the_frame_in_renders(bpy_env, tmp_path, persistent):
+    """An Image Texture on a sequence shows each frame's file in an animation
+    render (with and without Persistent Data) and in a still of a frame: the
+    exporter hands the node's image user and the scene frame to the cache."""
+    from addon_util import add_mesh, camera, fresh, rect, world
+    from core.film import read_exr
+    bpy = bpy_env.bpy
+    values = (40, 120, 200)
+    for frame, value in enumerate(values, 1):
+        write_png(str(bpy_env.dir / f"seq_{frame:04d}.png"),
+                  np.full((1, 1, 4), [value, value, value, 255], np.uint8))
+    scene = fresh(8, 8, samples=1)
+    scene.render.use_persistent_data = persistent
+    camera(location=(0, 0, 5), type="ORTHO", ortho_scale=1.0)
+    world((0, 0, 0))
+    img = bpy.data.images.load(str(bpy_env.dir / "seq_0001.png"))
+    img.source = "SEQUENCE"
+    img.colorspace_settings.name = "Non-Color"
+    mat = bpy.data.materials.new("seq_glow")
+    tree = mat.node_tree
+    tex = tree.nodes.new("ShaderNodeTexImage")
+    tex.image = img
+    tex.image_user.frame_duration = 3
+    bsdf = tree.nodes["Principled BSDF"]
+    bsdf.inputs["Base Color"].default_value = (0, 0, 0, 1)
+    bsdf.inputs["Emission Strength"].default_value = 1.0
+    tree.links.new(tex.outputs["Color"], bsdf.inputs["Emission Color"])
+    add_mesh("Card", *rect(-2, 2, -2, 2)).data.materials.append(mat)
+    scene.frame_start, scene.frame_end = 1, 3
+    scene.render.image_settings.file_format = "OPEN_EXR"
+    scene.render.filepath = str(tmp_path / "seq_####")
+    bpy.ops.render.render(animation=True)
+    got = [float(read_exr(tmp_path / f"seq_{f:04d}.exr")[..., :3].mean()) for f in (1, 2, 3)]
+    np.testing.assert_allclose(got, np.array(values) / 255.0, rtol=0.02)
+    scene.frame_set(2)
+    scene.render.filepath = str(tmp_path / "still.exr")
+    bpy.ops.render.render(write_still=True)
+    assert float(read_exr(tmp_path / "still.exr")[..., :3].mean()) == pytest.approx(values[1] / 255.0, rel=0.02)
+    bpy.data.materials.remove(mat)

@@ -54,7 +54,9 @@ def test02_image_texture_links_and_key(ng, Link):
     assert "Vector" not in graph.nodes[0].inputs and graph.needs == {"uv:"}   # the default UV map
 
     class Cache:
-        def key(self, image):
+        frame = 1
+
+        def key(self, image, image_user=None, scene_frame=1):
             return f"key of {image.name}"
     assert graph_of(ng, mat, Cache()).nodes[0].props["image"] == "key of checker.png"
 

@@ -136,6 +136,7 @@ def export_scene(depsgraph, width=None, height=None):
     if width is None:
         width, height = render_size(bscene)
     materials = MaterialTable(warn)
+    materials.images.frame = bscene.frame_current
     cache = {}
     verts, tris, normals, uvs, mids, oids, light_rows, corners = [], [], [], [], [], [], [], []
     offset = 0

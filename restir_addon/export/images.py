@@ -97,6 +97,7 @@ class ImageCache:
         self.warn = warn
         self.max_size = int(max_size)
         self._sets = {}
+        self.frame = 1          # the scene frame, which picks an image sequence's file
 
     @property
     def images(self):

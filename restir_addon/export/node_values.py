@@ -124,13 +124,15 @@ def _struct_props(struct, skip, images, nested=True):
         elif prop.type in ("BOOLEAN", "INT", "FLOAT", "STRING"):
             props[name] = _nested_tuple(value) if getattr(prop, "is_array", False) else value
         elif prop.type == "POINTER":
-            _pointer(props, name, value, images, nested)
+            _pointer(props, name, value, images, nested, struct)
     return props
 
 
-def _pointer(props, name, value, images, nested):
+def _pointer(props, name, value, images, nested, struct=None):
     if name == "image":
-        props[name] = images.key(value) if images is not None else (value.name if value else "")
+        # An image sequence's file follows the scene frame through the node's image user.
+        props[name] = images.key(value, getattr(struct, "image_user", None), images.frame) \
+            if images is not None else (value.name if value else "")
     elif isinstance(value, bpy.types.Object) or (value is None and name == "object"):
         props[name] = value.name if value is not None else ""
         if value is not None:
