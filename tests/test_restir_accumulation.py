@@ -349,10 +349,9 @@ def test14_depth_of_field_still_matches_path_tracing():
 def test15_a_panning_view_leaves_no_wall_over_the_sky():
     """A view panning past the end of a red wall uncovers the dark sky beside
     it, at the image's edge: pixels whose centre lay outside last frame's
-    image start over, and pixels without matching history take their
-    neighbourhood's darkest history as one frame, not as all it held. Else
-    the wall's history stayed on the sky for the running mean's 16 frames (a
-    translucent wall trailing the motion)."""
+    image start over. Else they took the wall's history from the taps
+    clamped to the border, and the sky carried it for the running mean's 16
+    frames (a translucent wall trailing the motion)."""
     from core import Camera, Lights, make_scene
     from core.scene import LIGHT_POINT
     from scenes import Builder, quad

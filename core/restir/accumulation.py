@@ -361,17 +361,14 @@ def accumulate(prev, footprint, direct, indirect, albedo, normal, cap, alpha=1.0
         if hist is None:
             hist = np.zeros_like(new)
         np.clip(hist, lo, hi, out=hist)
-        # That darkest history is a prior of one frame, not of the frames its
-        # pixel held: with their count a wall's history, taken by the sky
-        # uncovered beside it as a view panned, stayed for 16 frames (a
-        # translucent wall trailing the motion: frame 24 of a pan 9 % too
-        # bright). Rows whose centre lay outside last frame's image (their
-        # taps clamped to its border: another part of the scene) start over.
-        lost = ~footprint.found
-        if lost.any():
-            np.minimum(hist[:, 12], np.where(lost, np.float32(1), np.float32(np.inf)), out=hist[:, 12])
-            if footprint.inside is not None:
-                out = lost & ~footprint.inside
+        # Rows whose centre lay outside last frame's image start over: their
+        # taps, clamped to its border, saw another part of the scene. (A pan's
+        # uncovered sky took the wall's history at the border and carried it
+        # for 16 frames: a translucent wall trailing the motion, the panned
+        # frame 9 % too bright.)
+        if footprint.inside is not None:
+            out = ~footprint.inside
+            if out.any():
                 hist[out] = new[out]
                 hist[out, 12] = 0.0
     if refined is not None and not footprint.exact:
