@@ -146,6 +146,32 @@ def _follows(engine, stream, scene):
             and stream.restir.history is not None and _camera_name(scene) == stream.last_camera)
 
 
+CUT_ANGLE = 30.0        # degrees the view direction may turn between two frames of a shot
+CUT_MOVE = 0.2          # share of the scene's extent the camera may move between them
+CUT_ZOOM = 2.0          # ratio of focal lengths (or orthographic scales) between them
+
+
+def jumped(prev, cur, extent):
+    """Whether the camera jumped between two frames as at a cut (a shot cut
+    made with constant keyframes on one camera, a whip pan): its view
+    turned by more than CUT_ANGLE, it moved by more than CUT_MOVE of the
+    scene's extent, its zoom changed by more than CUT_ZOOM times, or its
+    projection changed. Reuse then starts over, with the warm-up of a first
+    frame: the history of the other view only ghosts into this one."""
+    if prev is None or cur is None:
+        return False
+    if prev.projection != cur.projection:
+        return True
+    a, b = np.asarray(prev.to_world, np.float64), np.asarray(cur.to_world, np.float64)
+    da, db = -a[:3, 2] / np.linalg.norm(a[:3, 2]), -b[:3, 2] / np.linalg.norm(b[:3, 2])
+    if float(np.dot(da, db)) < np.cos(np.radians(CUT_ANGLE)):
+        return True
+    if float(np.linalg.norm(a[:3, 3] - b[:3, 3])) > CUT_MOVE * extent:
+        return True
+    za, zb = (prev.lens, cur.lens) if cur.projection == "PERSP" else (prev.ortho_scale, cur.ortho_scale)
+    return not (za > 0 and zb > 0 and 1.0 / CUT_ZOOM <= zb / za <= CUT_ZOOM)
+
+
 def _chunk_warmup(engine, depsgraph, stream, width, height, view=None):
     """The first frame N of an animation render that starts after the scene's
     first frame: render frames max(frame_start, N - chunk_warmup_frames) ..
@@ -178,6 +204,10 @@ def _chunk_warmup(engine, depsgraph, stream, width, height, view=None):
             if not frame_scene.update(depsgraph, width, height, camera) or frame_scene.context is None:
                 restart()
                 continue
+            view_now = frame_scene.context.scene.camera
+            if stream.last_frame is not None and (_camera_name(scene) != stream.last_camera or jumped(
+                    stream.last_view, view_now, frame_scene.context.scene.extent())):
+                restart()           # a cut within the warm-up: the frames before it are another shot
             fresh = stream.last_frame is None
             frames = scene.restir_gi.samples
             if fresh:
@@ -191,7 +221,7 @@ def _chunk_warmup(engine, depsgraph, stream, width, height, view=None):
             if out is None:
                 restart()
                 return False
-            stream.last_frame, stream.last_camera = f, _camera_name(scene)
+            stream.last_frame, stream.last_camera, stream.last_view = f, _camera_name(scene), view_now
     finally:
         engine.frame_set(frame, 0.0)
         frame_scene.update(depsgraph, width, height, view_camera(engine, depsgraph, view, frame_scene.warnings))
@@ -203,7 +233,8 @@ def _render_restir(engine, ctx, scene, stream, width, height, export_s):
     settings = restir_settings(scene)
     frame = scene.frame_current
     camera = _camera_name(scene)
-    follows = _follows(engine, stream, scene)
+    view = ctx.scene.camera
+    follows = _follows(engine, stream, scene) and not jumped(stream.last_view, view, ctx.scene.extent())
     if not follows:
         stream.restir.reset()
     frames = scene.restir_gi.samples if follows else scene.restir_gi.warmup_frames
@@ -218,7 +249,7 @@ def _render_restir(engine, ctx, scene, stream, width, height, export_s):
 
     out = render_restir(ctx, stream.restir, settings, frame, frames, fresh=not follows,
                         on_frame=on_frame, should_stop=engine.test_break)
-    stream.last_frame, stream.last_camera = frame, camera
+    stream.last_frame, stream.last_camera, stream.last_view = frame, camera, view
     if out is None:
         engine.report({"INFO"}, "Render cancelled before the first frame finished")
         stream.restir.reset()

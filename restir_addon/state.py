@@ -25,6 +25,7 @@ class Stream:
         self.restir = ReSTIRGI()
         self.last_frame = None
         self.last_camera = None     # name of the camera object of that frame
+        self.last_view = None       # the core.Camera it was rendered with (final.jumped)
         self.frame_scene = frame_scene if frame_scene is not None else FrameScene()
 
     def free(self):

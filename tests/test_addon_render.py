@@ -10,6 +10,8 @@ import glob
 import os
 import time
 
+import math
+
 import numpy as np
 import pytest
 
@@ -389,6 +391,22 @@ def test_camera_cut_restarts_reuse(addon, reports, tmp_path):
     stream.restir.reset()
     bpy.ops.render.render(animation=True)
     assert stream.restir.frames == 3 + 3
+
+    # One camera cut to another view by its keyframes (a jump of 40 degrees
+    # from frame 2 to 3) is a cut too; a small move is not.
+    scene.camera = cam_a
+    for frame, angle in ((1, 0.0), (2, 0.0), (3, 40.0)):
+        cam_a.rotation_euler = (math.radians(angle), 0, 0)
+        cam_a.keyframe_insert("rotation_euler", frame=frame)
+    stream.restir.reset()
+    bpy.ops.render.render(animation=True)
+    assert stream.restir.frames == 3 + 1
+    from restir_gi.restir_addon.final import jumped
+    from core import Camera
+    a = Camera()
+    b = Camera(to_world=np.array(a.to_world, np.float32).copy(), lens=60.0)
+    b.to_world[0, 3] += 0.1
+    assert not jumped(a, b, 10.0) and jumped(a, b, 0.1) and jumped(a, Camera(lens=120.0), 10.0)
 
 
 @pytest.mark.parametrize("mode", ["PATH", "RESTIR_BIASED"])
