@@ -228,15 +228,15 @@ class Scene:
             return b"geometry version %d" % self.versions[0]
         return _digest([self.vertices, self.triangles])
 
-    def lighting_key(self, geometry_key=None):
+    def lighting_key(self, geometry_key=None, shading_key=None):
         """A digest of everything that decides the light leaving a surface point
         (geometry, materials, lights, world), but not the camera or the image:
         equal keys mean a path traced again with the same seed gives the same
-        radiance. geometry_key: this scene's, if the caller has it."""
+        radiance. geometry_key, shading_key: this scene's, if the caller has them."""
         if self.versions is not None:
             return b"lighting version %d.%d" % tuple(self.versions)
         return _digest([self.normals, self.material_ids], (geometry_key or self.geometry_key())
-                       + self.shading_key())
+                       + (shading_key or self.shading_key()))
 
     def shading_key(self):
         """A digest of the lights, the materials and the world alone: a change

@@ -137,13 +137,26 @@ def _camera_name(scene):
     return scene.camera.name if scene.camera is not None else None
 
 
-def _follows(engine, stream, scene):
-    """Reuse continues only into the next frame of an animation seen by the
-    same camera: a jump in time or a cut to another camera (timeline markers)
-    starts over, with the warm-up of a first frame."""
+def _follows(engine, stream, scene, ctx):
+    """Reuse continues only into the next frame of an animation of the same
+    shot: a jump in time or a cut (_same_shot) starts over, with the warm-up
+    of a first frame."""
+    return _next_frame(engine, stream, scene) and _same_shot(stream, scene, ctx)
+
+
+def _next_frame(engine, stream, scene):
+    """This frame of an animation comes right after the stream's last one
+    (else an animation render began here, after the scene's first frame:
+    _chunk_warmup; a cut at this frame needs none, the shot starts here)."""
     return (engine.is_animation and stream.last_frame is not None
-            and scene.frame_current == stream.last_frame + 1
-            and stream.restir.history is not None and _camera_name(scene) == stream.last_camera)
+            and scene.frame_current == stream.last_frame + 1 and stream.restir.history is not None)
+
+
+def _same_shot(stream, scene, ctx):
+    """This frame continues the shot of the stream's last frame: the same
+    camera object (timeline markers switch cameras) that did not jump."""
+    return _camera_name(scene) == stream.last_camera and not jumped(stream.last_view, ctx.scene.camera,
+                                                                     ctx.scene.extent())
 
 
 CUT_ANGLE = 30.0        # degrees the view direction may turn between two frames of a shot
@@ -204,9 +217,7 @@ def _chunk_warmup(engine, depsgraph, stream, width, height, view=None):
             if not frame_scene.update(depsgraph, width, height, camera) or frame_scene.context is None:
                 restart()
                 continue
-            view_now = frame_scene.context.scene.camera
-            if stream.last_frame is not None and (_camera_name(scene) != stream.last_camera or jumped(
-                    stream.last_view, view_now, frame_scene.context.scene.extent())):
+            if stream.last_frame is not None and not _same_shot(stream, scene, frame_scene.context):
                 restart()           # a cut within the warm-up: the frames before it are another shot
             fresh = stream.last_frame is None
             frames = scene.restir_gi.samples
@@ -221,7 +232,8 @@ def _chunk_warmup(engine, depsgraph, stream, width, height, view=None):
             if out is None:
                 restart()
                 return False
-            stream.last_frame, stream.last_camera, stream.last_view = f, _camera_name(scene), view_now
+            stream.last_frame, stream.last_camera = f, _camera_name(scene)
+            stream.last_view = frame_scene.context.scene.camera
     finally:
         engine.frame_set(frame, 0.0)
         frame_scene.update(depsgraph, width, height, view_camera(engine, depsgraph, view, frame_scene.warnings))
@@ -233,8 +245,7 @@ def _render_restir(engine, ctx, scene, stream, width, height, export_s):
     settings = restir_settings(scene)
     frame = scene.frame_current
     camera = _camera_name(scene)
-    view = ctx.scene.camera
-    follows = _follows(engine, stream, scene) and not jumped(stream.last_view, view, ctx.scene.extent())
+    follows = _follows(engine, stream, scene, ctx)
     if not follows:
         stream.restir.reset()
     frames = scene.restir_gi.samples if follows else scene.restir_gi.warmup_frames
@@ -249,7 +260,7 @@ def _render_restir(engine, ctx, scene, stream, width, height, export_s):
 
     out = render_restir(ctx, stream.restir, settings, frame, frames, fresh=not follows,
                         on_frame=on_frame, should_stop=engine.test_break)
-    stream.last_frame, stream.last_camera, stream.last_view = frame, camera, view
+    stream.last_frame, stream.last_camera, stream.last_view = frame, camera, ctx.scene.camera
     if out is None:
         engine.report({"INFO"}, "Render cancelled before the first frame finished")
         stream.restir.reset()
@@ -342,7 +353,7 @@ def _render_view(engine, depsgraph, view, report=True):
         if scene.restir_gi.mode == "PATH":
             images = _render_path(engine, ctx, scene, result, width, height, export_s)
         else:
-            if engine.is_animation and not _follows(engine, stream, scene):
+            if engine.is_animation and not _next_frame(engine, stream, scene):
                 if not _chunk_warmup(engine, depsgraph, stream, width, height, view):
                     engine.report({"INFO"}, "Render cancelled during the chunk warm-up")
                     return

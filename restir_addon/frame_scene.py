@@ -72,7 +72,7 @@ class FrameScene(SceneSync):
             self.sync(depsgraph)
         elif persistent:
             self.sync(depsgraph, depsgraph.updates)     # what Blender flagged
-            self._refresh_materials(depsgraph, self._sequence_materials())   # (no update flags them)
+            self._refresh_materials(depsgraph, self._animated_materials(sequences_only=True))
         else:
             self._sync_compare(depsgraph)
         self._persistent, self._depsgraph = persistent, pointer
@@ -97,7 +97,7 @@ class FrameScene(SceneSync):
     def _sync_compare(self, depsgraph):
         scene = depsgraph.scene
         self._materials.images.frame = scene.frame_current
-        self._refresh_materials(depsgraph, self._animated_materials() + self._sequence_materials())
+        self._refresh_materials(depsgraph, self._animated_materials())
         self._walk(depsgraph, None, None, compare=True)
         env = self._read_world(depsgraph)
         if env is not None:
@@ -111,22 +111,20 @@ class FrameScene(SceneSync):
             self.work.material_updates += len(changed)
             self._queue(materials=self._materials.snapshot())
 
-    def _sequence_materials(self):
-        """Original materials in use with an image sequence, whose file follows the frame."""
-        used = self._materials.index
-        return [mat for mat in bpy.data.materials
-                if mat.as_pointer() in used and mat.node_tree is not None and mat.animation_data is None
-                and (mat.node_tree.animation_data is None)
-                and any(getattr(getattr(n, "image", None), "source", "") == "SEQUENCE" for n in mat.node_tree.nodes)]
-
-    def _animated_materials(self):
-        """Original materials in use whose values may change with the frame."""
+    def _animated_materials(self, sequences_only=False):
+        """Original materials in use whose values may change with the frame:
+        with animation data (keyframes, drivers) or an Image Texture on an
+        image sequence, whose file follows the frame (only those with
+        sequences_only: Persistent Data's updates flag the others)."""
         used = self._materials.index
         out = []
         for mat in bpy.data.materials:
             tree = mat.node_tree
-            if mat.as_pointer() in used and (mat.animation_data is not None or (
-                    tree is not None and tree.animation_data is not None)):
+            if mat.as_pointer() not in used or tree is None:
+                continue
+            animated = mat.animation_data is not None or tree.animation_data is not None
+            if (animated and not sequences_only) or (not animated and any(
+                    getattr(getattr(n, "image", None), "source", "") == "SEQUENCE" for n in tree.nodes)):
                 out.append(mat)
         return out
 

@@ -13,8 +13,8 @@ import numpy as np
 
 from ..core.scene import Camera
 from .export.camera import depth_of_field
-from .export.mesh import (MeshData, hair_warning, place, placed_triangles, read_corner_data, read_mesh,
-                          triangle_cross, unit_rows)
+from .export.mesh import (MeshData, hair_warning, mirrors, place, placed_triangles, read_corner_data,
+                          read_mesh, triangle_cross, unit_rows)
 
 
 @dataclass
@@ -110,8 +110,9 @@ def _placed(inst):
     where its matrix mirrors); face normals from the object-space ones where
     the mesh has them (the normal matrix keeps them exact up to rounding)."""
     mesh = inst.mesh
-    pos, nrm = place(mesh, inst.matrix)
-    tris, uvs = placed_triangles(mesh, inst.matrix)
+    flip = mirrors(inst.matrix)
+    pos, nrm = place(mesh, inst.matrix, flip)
+    tris, uvs = placed_triangles(mesh, inst.matrix, flip)
     if not np.isfinite(nrm).all():
         nrm = np.where(np.isfinite(nrm), nrm, 0.0).astype(np.float32)
     if mesh.face_normals is None or len(mesh.face_normals) != len(mesh.triangles):

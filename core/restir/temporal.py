@@ -128,13 +128,20 @@ def _move_rows(m, rows, points=(), directions=(), normals=()):
     """Apply the (K, 4, 4) matrices m, one per row index in ``rows``, to
     those rows of point, direction and normal arrays, in place."""
     lin = m[:, :3, :3]
-    normal_m = np.transpose(np.linalg.inv(lin), (0, 2, 1))
     for a in points:
         a[rows] = (np.einsum("kij,kj->ki", lin, a[rows].astype(np.float64)) + m[:, :3, 3]).astype(np.float32)
-    for mat, group in ((lin, directions), (normal_m, normals)):
-        for a in group:
-            v = np.einsum("kij,kj->ki", mat, a[rows].astype(np.float64))
-            a[rows] = (v / np.maximum(np.linalg.norm(v, axis=1, keepdims=True), 1e-30)).astype(np.float32)
+    for a in directions:
+        _turn_rows(a, rows, lin)
+    if normals:
+        normal_m = np.transpose(np.linalg.inv(lin), (0, 2, 1))
+        for a in normals:
+            _turn_rows(a, rows, normal_m)
+
+
+def _turn_rows(a, rows, mat):
+    """Rows of unit vectors a, turned by the (K, 3, 3) mat and renormalised, in place."""
+    v = np.einsum("kij,kj->ki", mat, a[rows].astype(np.float64))
+    a[rows] = (v / np.maximum(np.linalg.norm(v, axis=1, keepdims=True), 1e-30)).astype(np.float32)
 
 
 def carry_with_objects(scene, history):

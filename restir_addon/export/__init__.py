@@ -160,14 +160,15 @@ def export_scene(depsgraph, width=None, height=None):
         if entry is None or len(entry[0].triangles) == 0:
             continue
         mesh, corner = entry
-        pos, nrm = place(mesh, inst.matrix_world)
-        placed_tris, placed_uvs = placed_triangles(mesh, inst.matrix_world)
+        flip = mirrors(inst.matrix_world)
+        pos, nrm = place(mesh, inst.matrix_world, flip)
+        placed_tris, placed_uvs = placed_triangles(mesh, inst.matrix_world, flip)
         slots = np.clip(mesh.slots, 0, len(slot_ids) - 1)
         verts.append(pos)
         tris.append(placed_tris + offset)
         normals.append(nrm)
         uvs.append(placed_uvs)
-        corners.append(placed_corners(corner, inst.matrix_world))
+        corners.append(placed_corners(corner, inst.matrix_world, flip))
         mids.append(slot_ids[slots])
         key = instance_key(inst, obj)
         if key not in object_index:
@@ -225,13 +226,14 @@ def export_scene(depsgraph, width=None, height=None):
     return scene, camera is not None
 
 
-def placed_corners(corner, matrix):
+def placed_corners(corner, matrix, flip=None):
     """Corner data of one placed instance, corners in placed_triangles'
     order: tangents (read in object space) turned into world space by the
     instance's matrix, their bitangent sign flipped where it mirrors (the
     bitangent is the sign times cross(normal, tangent), and a mirror turns
-    that cross product around); the rest unchanged."""
-    flip = mirrors(matrix)
+    that cross product around); the rest unchanged. flip: mirrors(matrix),
+    if the caller has it."""
+    flip = mirrors(matrix) if flip is None else flip
     keys = [k for k in corner if k.startswith("tangent:")]
     if not keys and not flip:
         return corner

@@ -225,17 +225,17 @@ def mirrors(matrix):
     return bool(np.linalg.det(linear) < 0)
 
 
-def placed_triangles(mesh, matrix):
+def placed_triangles(mesh, matrix, flip=None):
     """(triangles, uvs) of a mesh as placed under a matrix: corners 0, 2, 1
-    where it mirrors."""
-    if mirrors(matrix):
+    where it mirrors (flip: mirrors(matrix), if the caller has it)."""
+    if mirrors(matrix) if flip is None else flip:
         return mesh.triangles[:, SWAP], mesh.uvs[:, SWAP]
     return mesh.triangles, mesh.uvs
 
 
-def place(mesh, matrix):
+def place(mesh, matrix, flip=None):
     """World-space positions and corner normals of a mesh under a 4x4 matrix
-    (corners in placed_triangles' order). A
+    (corners in placed_triangles' order; flip: mirrors(matrix), if known). A
     matrix without rotation or scale (the common case of big static meshes)
     only translates; normals are transformed in float32, renormalised only
     where the matrix is not a rotation times a uniform scale."""
@@ -256,4 +256,4 @@ def place(mesh, matrix):
         length = np.sqrt(np.einsum("ij,ij->i", n, n))[:, None]
         n /= np.where(length > 0, length, 1)
     n = n.reshape(-1, 3, 3).astype(np.float32, copy=False)
-    return pos, (n[:, SWAP] if mirrors(m) else n)
+    return pos, (n[:, SWAP] if (mirrors(m) if flip is None else flip) else n)
