@@ -327,7 +327,10 @@ def _picklable(e):
         pickle.loads(pickle.dumps(e))
         return e
     except Exception:
-        return RuntimeError(f"{type(e).__name__}: {e}")
+        out = RuntimeError(f"{type(e).__name__}: {e}")
+        for note in getattr(e, "__notes__", ()):    # where it happened (core/errors.py)
+            out.add_note(note)
+        return out
 
 
 def _read_exactly(fd, n):

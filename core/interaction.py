@@ -38,6 +38,19 @@ class SurfaceHits:
                              for f in self.__dataclass_fields__))
 
 
+@dataclass
+class HitSides:
+    """Which triangle each ray hit and from which side: what the emission of
+    materials that are uniform over their surface needs (surface_emission
+    where materials.emission_per_hit is False), without SurfaceHits' points,
+    normals and barycentrics."""
+    prim: np.ndarray        # (N,) int32 triangle index
+    front: np.ndarray       # (N,) bool, True where the ray hit the front face
+
+    def __len__(self):
+        return len(self.prim)
+
+
 def surface_hits(scene, origins, directions, hits, mask=None):
     """Build SurfaceHits for the rays that hit (or the subset ``mask`` of them)."""
     idx = np.nonzero(hits.hit if mask is None else mask)[0]

@@ -14,6 +14,7 @@ The graphs are compiled and the lobe table built once per scene object
 import numpy as np
 
 from . import bsdf
+from .interaction import SurfaceHits
 from .rows import gather, scatter
 from .shader import CompiledShader, SurfaceGeometry, WorldGeometry
 
@@ -161,6 +162,14 @@ def surface_params(scene, surf, camera_ray=False):
     return params
 
 
+def emission_per_hit(scene, camera=False):
+    """Whether surface_emission evaluates some material's graph at each hit
+    (graphs that vary over the surface and may emit; for camera rays, graphs
+    reading Light Path too): then it needs SurfaceHits, else HitSides do."""
+    sh = shading(scene)
+    return bool(sh.emitting) or (camera and bool(sh.camera_ids))
+
+
 def camera_emission(scene, surf, lights):
     """(N, 3) emission camera rays see at the hits ``surf`` (surface_emission
     as camera rays: graphs reading Light Path see Is Camera Ray)."""
@@ -172,13 +181,17 @@ def surface_emission(scene, surf, lights, camera=False):
     emissive triangles' for uniform materials, and each hit's own for graphs
     that vary over the surface and may emit (an image on a screen), as
     Cycles evaluates emission where a ray lands. camera: camera rays (graphs
-    reading Light Path are evaluated at each hit as such)."""
+    reading Light Path are evaluated at each hit as such). surf: SurfaceHits,
+    or interaction.HitSides where emission_per_hit(scene, camera) is False."""
     n = len(surf.prim)
     em = np.zeros((n, 3), np.float32)
     if len(lights.tri_index):
         em += lights.triangle_emission(surf.prim, surf.front)
     sh = shading(scene)
     ids = set(sh.emitting) | (set(sh.camera_ids) if camera else set())
+    if ids and n and not isinstance(surf, SurfaceHits):
+        raise TypeError(f"surface_emission: the graphs of materials {sorted(ids)} are evaluated "
+                        f"at each hit and need SurfaceHits, not {type(surf).__name__}")
     for m in sorted(ids):
         rows = np.nonzero(surf.material == m)[0]
         if len(rows):
@@ -208,7 +221,6 @@ def emission_at_points(scene, prim, p, normal, wo, bary):
     (N, 3) on triangles prim (N,) (barycentrics bary (N, 2), unit face
     normals (N, 3), wo (N, 3) toward the receiver); zero for other
     materials. Light samples on textured emitters read it (lights.py)."""
-    from .interaction import SurfaceHits   # noqa: PLC0415
     sh = shading(scene)
     em = np.zeros((len(prim), 3), np.float32)
     mats = np.take(scene.material_ids, prim)

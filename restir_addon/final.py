@@ -27,6 +27,7 @@ import numpy as np
 
 from ..core import RenderSettings, render_frame
 from ..core.camera import crop
+from ..core.errors import describe
 from ..core.environment import scene_environment
 from ..core.film import to_rgba
 from ..core.integrators.bounces import Bounces
@@ -369,7 +370,7 @@ def _render_view(engine, depsgraph, view, report=True):
         engine.report({"ERROR"}, str(exc))
     except Exception as exc:  # report, never kill the render
         traceback.print_exc()
-        engine.report({"ERROR"}, f"ReSTIR GI render failed: {exc}")
+        engine.report({"ERROR"}, f"ReSTIR GI render failed: {describe(exc)}")
     finally:
         t2 = time.perf_counter()
         try:

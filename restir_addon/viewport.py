@@ -43,6 +43,7 @@ import numpy as np
 from ..core.camera import PixelFilter
 from ..core.integrators.bounces import Bounces
 from ..core.dynamic_accel import TraceInterrupted
+from ..core.errors import describe
 from ..core.film import to_rgba
 from ..core.render import CHUNK_PIXELS, path_trace_pixels
 from ..core.restir import ReSTIRGI, ReSTIRSettings
@@ -363,7 +364,7 @@ class ViewportSession(SceneSync):
                     continue
                 except Exception as exc:  # keep the viewport alive; show the error, wait for edits
                     traceback.print_exc()
-                    self.error = str(exc) or type(exc).__name__
+                    self.error = describe(exc)
         finally:
             self._free()
 

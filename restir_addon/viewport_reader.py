@@ -10,6 +10,7 @@ Embree scenes.
 import bpy
 import numpy as np
 
+from ..core.errors import context
 from ..core.scene import Lights
 from .export import film_transparent, instance_key, is_holdout, ray_visibility, visibility_warnings
 from .export.camera import export_camera, render_size
@@ -150,7 +151,8 @@ class SceneReader:
             cached = self._meshes.get(mkey)
             missing = cached is not None and not needs <= set(cached.corners)
             if mkey not in fresh and (flagged or mkey not in self._meshes or missing):
-                self._meshes[mkey] = _read_object_mesh(obj, needs, self.warnings)
+                with context("object", f"'{orig.name}'"):
+                    self._meshes[mkey] = _read_object_mesh(obj, needs, self.warnings)
                 self._mesh_counts[mkey] = _counts(obj)
                 self.work.mesh_exports += 1
                 fresh.add(mkey)

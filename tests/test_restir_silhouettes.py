@@ -178,3 +178,32 @@ def test07_moving_view_holds_seen_history_under_the_ceiling(ctx):
     foot.exact = True
     still = accumulate(prev, foot, zeros, zeros, zeros, zeros, 16, 1.0, seen, refined)
     np.testing.assert_allclose(still.seen, (4 * 100.0 + seen) / 5, rtol=1e-5)
+
+
+def test08_emission_that_varies_over_the_surface():
+    """An emitter whose emission comes from a texture (a screen's image) is
+    evaluated at each ray's own hit: the refinement's rays see what the
+    G-buffer's do, and many rays per edge pixel work (they took the sparse
+    hit record that such graphs cannot read, and every real file with a
+    textured emitter failed)."""
+    from core.shader.graph import Link, Node, ShaderGraph
+    scene = emitter_scene()
+    screen = ShaderGraph(nodes=[
+        Node("TEX_COORD"),
+        Node("TEX_CHECKER", {"Vector": Link(0, "Object"), "Color1": (20.0, 16.0, 12.0),
+                             "Color2": (2.0, 4.0, 8.0), "Scale": 3.0}),
+        Node("EMISSION", {"Color": Link(1, "Color"), "Strength": 1.0})], output=Link(2, "Emission"), name="Screen")
+    scene.shaders = [None, screen]
+    scene.object_matrices = np.eye(4, dtype=np.float32)[None]
+    c = RenderContext.build(scene)
+    try:
+        pf = PixelFilter(1.5)
+        gb = trace_gbuffer(c, 5, 3, pf)
+        one = mean_seen_directly(c, 5, 3, pf, np.arange(SIZE * SIZE), 1)
+        np.testing.assert_allclose(one, gb.emission, rtol=1e-6, atol=1e-6)
+        assert len(np.unique(luminance(gb.emission[luminance(gb.emission) > 1]).round(3))) > 1   # it varies
+        seen = gb.emission.copy()
+        assert refine_edges(c, 5, 3, pf, seen, np.zeros(SIZE * SIZE, np.float32), 8) is not None
+        assert np.isfinite(seen).all() and (seen != gb.emission).any()
+    finally:
+        c.close()

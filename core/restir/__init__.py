@@ -13,6 +13,7 @@ import time
 import numpy as np
 
 from .. import materials, samplers
+from ..errors import context
 from ..camera import PixelFilter
 from ..parallel import release_free_memory
 from ..reservoir_store import NARROW_MIN_PIXELS
@@ -44,6 +45,11 @@ MOVING_CAP = 4      # frames of accumulated history kept in a frame where object
 MOVING_M_CAP = 4.0  # M cap of the reservoirs of pixels on objects that moved: a moving
                     # object's light changes as it moves, and with the usual caps its
                     # reservoirs lagged (tests/test_restir_moving_objects.py)
+
+
+def stage(name):
+    """Errors raised inside name the frame's stage (errors.context)."""
+    return context("stage", name)
 
 
 class ReSTIRGI:
@@ -116,9 +122,10 @@ class ReSTIRGI:
         seeds = samplers.path_seeds(settings.seed, frame, pix, 0x5EED)
 
         history = self.history
-        if history is not None:
-            carry_with_objects(scene, history)     # samples and owners ride with moved objects
-        motion = ObjectMotion.between(scene, history)     # None if nothing moved
+        with stage("object motion"):
+            if history is not None:
+                carry_with_objects(scene, history)     # samples and owners ride with moved objects
+            motion = ObjectMotion.between(scene, history)     # None if nothing moved
 
         # Last frame's traced visibility is reused only if no triangle moved.
         geometry_key = scene.geometry_key()
@@ -151,7 +158,8 @@ class ReSTIRGI:
         if settings.validation_interval > 0:
             if history is not None and self._stale and (self.frames % settings.validation_interval == 0
                                                         or settings.validate_on_change):
-                validate(ctx, _distinct(history.temporal, history.spatial), settings.max_bounces)
+                with stage("sample validation"):
+                    validate(ctx, _distinct(history.temporal, history.spatial), settings.max_bounces)
                 self.validations += 1
                 self._stale = False
                 if self._light_edit:
@@ -184,45 +192,53 @@ class ReSTIRGI:
 
         def new_samples(a, b):
             t = time.perf_counter()
-            part = trace_rows(ctx, settings.seed, frame, pixel_filter, True, a, b, self.frames)
+            with stage("G-buffer"):
+                part = trace_rows(ctx, settings.seed, frame, pixel_filter, True, a, b, self.frames)
             t = spent("gbuffer", t)
-            prev = reproject(scene, part, history, motion) if settings.temporal else np.full(b - a, -1, np.int64)
-            hold = reprojected_hold(prev, history.noise_hold) if history is not None else None
-            counts = light_sample_counts(part.index, prev, hold, settings.light_samples)
+            with stage("reprojection"):
+                prev = reproject(scene, part, history, motion) if settings.temporal \
+                    else np.full(b - a, -1, np.int64)
+                hold = reprojected_hold(prev, history.noise_hold) if history is not None else None
+                counts = light_sample_counts(part.index, prev, hold, settings.light_samples)
             # Initial samples (several per pixel are streamed into one reservoir).
             per_frame = max(1, settings.samples)
             along = settings.sequences
-            initial, direct, glossy = initial_samples(ctx, part, settings.seed, frame, 0,
-                                                      settings.max_bounces, settings.initial_sampling, counts,
-                                                      own_surface_glossy=not path_reuse,
-                                                      stream_index=self.frames * per_frame if along else None,
-                                                      sky_rays=sky_on)
-            reused = GlossySamples.of_range(part, initial) if path_reuse else None
-            for s in range(1, max(1, settings.samples)):
-                extra, d, g = initial_samples(ctx, part, settings.seed, frame, s, settings.max_bounces,
-                                              settings.initial_sampling, counts,
-                                              stream_index=self.frames * per_frame + s if along else None,
-                                              sky_rays=sky_on)
-                merge(initial, extra, extra.w_sum, extra.M, samplers.uniform(seeds[a:b], 10 + s))
-                direct += d
-                glossy += g
-            direct /= max(1, settings.samples)
-            glossy /= max(1, settings.samples)
-            share = np.where(prev >= 0, history.sky_share[np.maximum(prev, 0)], np.nan) \
-                if sky_on and history is not None and history.sky_share is not None else np.full(b - a, np.nan)
-            sky = visible_sky_light(ctx, part, settings.seed, frame, seeds[a:b][part.index],
-                                    point_plan(settings.sky_samples, share[part.index]), settings.sky_samples,
-                                    [self.frames * per_frame + s if along else None for s in range(per_frame)])
-            scatter_add(direct, part.index, sky)
-            sky_lum = scatter(np.zeros(b - a, np.float32), part.index, luminance(sky).astype(np.float32))
-            finalize(initial, target_at(initial, part.p, part.ng, part.n))
+            with stage("initial samples"):
+                initial, direct, glossy = initial_samples(ctx, part, settings.seed, frame, 0,
+                                                          settings.max_bounces, settings.initial_sampling, counts,
+                                                          own_surface_glossy=not path_reuse,
+                                                          stream_index=self.frames * per_frame if along else None,
+                                                          sky_rays=sky_on)
+                reused = GlossySamples.of_range(part, initial) if path_reuse else None
+                for s in range(1, max(1, settings.samples)):
+                    extra, d, g = initial_samples(ctx, part, settings.seed, frame, s, settings.max_bounces,
+                                                  settings.initial_sampling, counts,
+                                                  stream_index=self.frames * per_frame + s if along else None,
+                                                  sky_rays=sky_on)
+                    merge(initial, extra, extra.w_sum, extra.M, samplers.uniform(seeds[a:b], 10 + s))
+                    direct += d
+                    glossy += g
+                direct /= max(1, settings.samples)
+                glossy /= max(1, settings.samples)
+            with stage("sky rays"):
+                share = np.where(prev >= 0, history.sky_share[np.maximum(prev, 0)], np.nan) \
+                    if sky_on and history is not None and history.sky_share is not None else np.full(b - a, np.nan)
+                sky = visible_sky_light(ctx, part, settings.seed, frame, seeds[a:b][part.index],
+                                        point_plan(settings.sky_samples, share[part.index]), settings.sky_samples,
+                                        [self.frames * per_frame + s if along else None for s in range(per_frame)])
+                scatter_add(direct, part.index, sky)
+                sky_lum = scatter(np.zeros(b - a, np.float32), part.index, luminance(sky).astype(np.float32))
+            with stage("initial samples"):
+                finalize(initial, target_at(initial, part.p, part.ng, part.n))
             t = spent("initial", t)
-            temporal = temporal_resample(initial, part, history, prev, samplers.uniform(seeds[a:b], 5),
-                                         moving_cap(part.object_id, settings.temporal_M_cap),
-                                         settings.max_age, biased)
+            with stage("temporal reuse"):
+                temporal = temporal_resample(initial, part, history, prev, samplers.uniform(seeds[a:b], 5),
+                                             moving_cap(part.object_id, settings.temporal_M_cap),
+                                             settings.max_age, biased)
             del initial
-            alpha, keep = materials.camera_alpha(scene, b - a, part.index, part.surf)
-            diffuse = scatter(np.zeros((b - a, 3), np.float32), part.index, part.frame.params.diffuse)
+            with stage("G-buffer"):
+                alpha, keep = materials.camera_alpha(scene, b - a, part.index, part.surf)
+                diffuse = scatter(np.zeros((b - a, 3), np.float32), part.index, part.frame.params.diffuse)
             spent("temporal", t)
             return FirstPass(part.valid, part.depth, part.object_id, part.p, part.n, part.ng, part.albedo,
                              direct, luminance(direct).astype(np.float32), part.emission, glossy, diffuse,
@@ -241,8 +257,9 @@ class ReSTIRGI:
             n, shaded, history is not None, GlossySamples.allocate(n) if path_reuse else None))
         prev_pix, temporal = one.prev_pix, one.temporal
         t = time.perf_counter()
-        refined = refine_edges(ctx, settings.seed, frame, pixel_filter, one.seen, one.lum_direct,
-                                settings.edge_samples, self.frames)
+        with stage("edge refinement"):
+            refined = refine_edges(ctx, settings.seed, frame, pixel_filter, one.seen, one.lum_direct,
+                                   settings.edge_samples, self.frames)
         spent("gbuffer", t)
         img = FrameImage(one.valid, one.depth, one.object_id, one.p, one.n, one.ng, gb_width, gb_height)
         gate = light_range(one.lum_direct, one.valid, gb_width, gb_height) if moved else None
@@ -285,57 +302,62 @@ class ReSTIRGI:
             t = time.perf_counter()
             part = img.part(a, b, one.diffuse)
             known = None
-            if not settings.spatial:
-                spatial, visible_own = temporal.rows(a, b), None
-            else:
-                prev_spatial, prev_owner = None, None
-                if carry:       # last frame's spatial reservoirs of these pixels
-                    found = prev_pix[a:b] >= 0
-                    q = np.maximum(prev_pix[a:b], 0)
-                    prev_spatial = history.spatial.take(q)
-                    prev_spatial.M = np.where(found, np.minimum(prev_spatial.M, moving_cap(img.object_id[a:b], cap)),
-                                              0.0).astype(np.float32)
-                    prev_spatial.age += 1
-                    prev_spatial.M[prev_spatial.age > settings.max_age] = 0
-                    prev_owner = gather(history.owners(spatial=True), q)
-                spatial, visible_own, from_prev = spatial_resample(
-                    ctx, img, temporal, prev_spatial, prev_owner, seeds, settings.spatial_neighbors,
-                    settings.spatial_radius, biased, rows=(a, b), shared=shared)
-                if carry and static and visible_own is None:
-                    known = carried_visibility(np.take(history.visibility, q), from_prev, prev_owner,
-                                               img.p[a:b], spatial.x2)
+            with stage("spatial reuse"):
+                if not settings.spatial:
+                    spatial, visible_own = temporal.rows(a, b), None
+                else:
+                    prev_spatial, prev_owner = None, None
+                    if carry:       # last frame's spatial reservoirs of these pixels
+                        found = prev_pix[a:b] >= 0
+                        q = np.maximum(prev_pix[a:b], 0)
+                        prev_spatial = history.spatial.take(q)
+                        cap_here = moving_cap(img.object_id[a:b], cap)
+                        prev_spatial.M = np.where(found, np.minimum(prev_spatial.M, cap_here), 0.0).astype(np.float32)
+                        prev_spatial.age += 1
+                        prev_spatial.M[prev_spatial.age > settings.max_age] = 0
+                        prev_owner = gather(history.owners(spatial=True), q)
+                    spatial, visible_own, from_prev = spatial_resample(
+                        ctx, img, temporal, prev_spatial, prev_owner, seeds, settings.spatial_neighbors,
+                        settings.spatial_radius, biased, rows=(a, b), shared=shared)
+                    if carry and static and visible_own is None:
+                        known = carried_visibility(np.take(history.visibility, q), from_prev, prev_owner,
+                                                   img.p[a:b], spatial.x2)
             t = spent("spatial", t)
-            indirect, visibility = shade_indirect(ctx, part, spatial, visible_own, known)
-            if biased and settings.spatial:
-                # A sample hidden from its pixel is not carried to the next frame
-                # (RTXDI's "discard invisible samples"): with M up to the spatial
-                # cap it would win again and again, a black pixel for many frames.
-                # On the room this takes pixels without indirect light from 4.7 %
-                # to 1.5 % and the mean closer to the reference (bench/fig1.py's MSE
-                # is unchanged).
-                spatial.clear(visibility < 0)
-            direct_total, seen = one.direct[a:b], one.seen[a:b]
-            indirect += one.glossy[a:b]     # the glossy lobe's light, from this frame's own samples
+            with stage("shading"):
+                indirect, visibility = shade_indirect(ctx, part, spatial, visible_own, known)
+                if biased and settings.spatial:
+                    # A sample hidden from its pixel is not carried to the next frame
+                    # (RTXDI's "discard invisible samples"): with M up to the spatial
+                    # cap it would win again and again, a black pixel for many frames.
+                    # On the room this takes pixels without indirect light from 4.7 %
+                    # to 1.5 % and the mean closer to the reference (bench/fig1.py's MSE
+                    # is unchanged).
+                    spatial.clear(visibility < 0)
+                direct_total, seen = one.direct[a:b], one.seen[a:b]
+                indirect += one.glossy[a:b]     # the glossy lobe's light, from this frame's own samples
             if one.glossy_samples is not None:  # ... and, on surfaces, its neighbours' (first sample)
                 t = spent("shading", t)
-                indirect += reuse_glossy(ctx, img, one.glossy_samples, a, b) \
-                    / np.float32(max(1, settings.samples))
+                with stage("glossy reuse"):
+                    indirect += reuse_glossy(ctx, img, one.glossy_samples, a, b) \
+                        / np.float32(max(1, settings.samples))
                 t = spent("glossy", t)
-            keep = one.keep[a:b].copy()
-            if (keep < 1).any():    # Holdout: the pixel's share cut out, colour and all
-                direct_total, indirect, seen = scale(direct_total, keep), scale(indirect, keep), scale(seen, keep)
-            for x in (direct_total, indirect, seen):
-                np.nan_to_num(x, copy=False, nan=0.0, posinf=0.0, neginf=0.0)
-            footprint = None
-            if prev_acc is not None:
-                footprint = previous_pixels(scene, part, history, motion, still_scene=not moved,
-                                            edges=None if edges is None else edges[a:b])
-            # (without accumulation: this frame's values, as a mean of one frame)
-            rows = accumulate(prev_acc, footprint, direct_total, indirect, one.albedo[a:b], img.n[a:b],
-                              settings.accumulate, one.alpha[a:b], seen,
-                              None if refined is None else refined.rows(a, b),
-                              None if gate is None else gate.rows(a, b), settings.frame_weight).data
-            shaded[a:b] = rows
+            with stage("shading"):
+                keep = one.keep[a:b].copy()
+                if (keep < 1).any():    # Holdout: the pixel's share cut out, colour and all
+                    direct_total, indirect, seen = scale(direct_total, keep), scale(indirect, keep), scale(seen, keep)
+                for x in (direct_total, indirect, seen):
+                    np.nan_to_num(x, copy=False, nan=0.0, posinf=0.0, neginf=0.0)
+            with stage("accumulation"):
+                footprint = None
+                if prev_acc is not None:
+                    footprint = previous_pixels(scene, part, history, motion, still_scene=not moved,
+                                                edges=None if edges is None else edges[a:b])
+                # (without accumulation: this frame's values, as a mean of one frame)
+                rows = accumulate(prev_acc, footprint, direct_total, indirect, one.albedo[a:b], img.n[a:b],
+                                  settings.accumulate, one.alpha[a:b], seen,
+                                  None if refined is None else refined.rows(a, b),
+                                  None if gate is None else gate.rows(a, b), settings.frame_weight).data
+                shaded[a:b] = rows
             color = rows[:, 0:3] + rows[:, 3:6] + rows[:, 14:17]
             spent("shading", t)
             return (None if not settings.spatial else spatial), visibility, color

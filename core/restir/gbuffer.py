@@ -3,7 +3,6 @@
 import dataclasses
 from dataclasses import dataclass
 from functools import cached_property
-from types import SimpleNamespace
 
 import numpy as np
 
@@ -131,9 +130,21 @@ class FrameImage:
         index = np.flatnonzero(valid)
         surf = VisiblePoints(gather(self.p[start:stop], index), gather(self.ng[start:stop], index),
                              gather(self.n[start:stop], index))
-        frame = SimpleNamespace(params=SimpleNamespace(diffuse=gather(diffuse[start:stop], index)))
+        frame = DiffuseOnly(gather(diffuse[start:stop], index))
         return GBuffer(valid, surf, frame, index, self.depth[start:stop], self.object_id[start:stop],
                        None, None, self.width, self.height, start)
+
+
+@dataclass
+class DiffuseOnly:
+    """What the passes after the first read of a ShadingFrame: its BSDF
+    parameters' diffuse reflectance (shading.shade_indirect), as
+    ``frame.params.diffuse``."""
+    diffuse: np.ndarray     # (V, 3)
+
+    @property
+    def params(self):
+        return self
 
 
 @dataclass

@@ -26,12 +26,11 @@ edge_pixels for where a cap binds).
 """
 
 from dataclasses import dataclass
-from types import SimpleNamespace
 
 import numpy as np
 
 from .. import materials, samplers
-from ..interaction import surface_hits
+from ..interaction import HitSides, surface_hits
 from ..parallel import concat_rows
 from ..rows import gather
 from ..sampling import dot, luminance
@@ -103,15 +102,17 @@ def _mean_seen_on_workers(ctx, seed, frame, pixel_filter, pixels, samples, strea
 
 
 def _sides(scene, d, hits):
-    """What seen_directly reads of the surfaces hit, (triangle, front side)
-    per hit, and the rows that hit: no shading frames (interaction.surface_hits).
-    Graphs reading Light Path are evaluated at each hit: the whole hits then."""
-    if scene.face_normals is None or materials.shading(scene).camera_ids:
+    """What seen_directly reads of the surfaces hit, and the rows that hit:
+    HitSides (triangle, front side) where every material's emission is
+    uniform over its surface; where some graph's emission is evaluated at
+    each hit (it varies over the surface or reads Light Path:
+    materials.emission_per_hit), the whole SurfaceHits."""
+    if scene.face_normals is None or materials.emission_per_hit(scene, camera=True):
         return surface_hits(scene, None, d, hits)
     idx = np.flatnonzero(hits.hit)
     prim = hits.prim[idx]
     front = dot(gather(scene.face_normals, prim), gather(d, idx)) <= 0
-    return SimpleNamespace(prim=prim, front=front), idx
+    return HitSides(prim, front), idx
 
 
 @dataclass

@@ -16,6 +16,7 @@ same with its error in the warning. No graph raises.
 
 import numpy as np
 
+from ..errors import context
 from .closure import Closure
 from .graph import BOOL, COLOR, FLOAT, INT, SHADER, VECTOR, Link
 
@@ -204,7 +205,8 @@ class CompiledShader:
         link = self.graph.output
         if link is None:
             return Closure()
-        values = self.outputs(geom)
+        with context("material", f"'{self.graph.name}'"):
+            values = self.outputs(geom)
         v = values[link.node].get(link.socket)
         if v is None:
             return Closure()
