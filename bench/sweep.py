@@ -1,0 +1,608 @@
+#!/usr/bin/env python3
+"""Render every .blend file under a folder in every mode, through the installed extension.
+
+    .venv/bin/python bench/sweep.py DIR [--size 64x64] [--warmup 16] [--timeout 120]
+                                        [--modes path,biased,unbiased] [--camera]
+                                        [--jobs 1] [--output sweep] [--resume]
+
+A robustness sweep over files made by others (e.g. the test scenes of other
+projects' public repositories): does the engine render them at all? Each file
+is rendered as a still (the frame it was saved at) in each mode (Path Tracing,
+ReSTIR GI Biased, ReSTIR GI Unbiased), each render in a Python subprocess of
+its own that imports the ``bpy`` module, enables the extension installed from
+the built package (``make build``; installed as ``tools/render.py`` does, into
+``--user-resources``), opens the file, selects the engine and renders with
+``bpy.ops.render.render``, under a time limit. The size (resolution at 100 %)
+and the warm-up frames are set on every file; everything else is the file's.
+
+Per file and mode the result is one of
+
+- ``rendered``: finished, no NaN or Inf in the Combined pass;
+- ``nan``: finished, but the Combined pass holds NaN or Inf pixels (counted);
+- ``failed``: the engine reported an error (``RenderEngine.report``, e.g.
+  ``ReSTIR GI render failed: ...``, which makes Blender's render operator
+  raise) or a Python exception escaped it; the first line of the error is
+  kept, and where the subprocess printed a traceback, the innermost frame in
+  the extension's code;
+- ``crashed``: the subprocess died by a signal or exited without its result;
+- ``timeout``: still running after ``--timeout`` seconds (killed);
+
+with the render's time (the render operator alone, without Blender's start-up
+and the loading of the file). Files that are not .blend files (Git LFS
+pointers of repositories checked out without LFS) are listed as skipped.
+
+With ``--camera`` every file gets a camera that frames all its visible
+geometry: a file without a camera gets a new one (looking down from the front
+right, like Blender's default camera); a scene camera is kept with its
+direction and lens but moved (parent, constraints and animation removed) so
+everything visible is in view. Real test files often have no camera, or one
+pointing elsewhere.
+
+Writes ``OUTPUT.md`` (counts per mode, a table with one row per file, the
+errors in full) and ``OUTPUT.json`` (every result), both naming files by
+their path relative to DIR. The JSON is rewritten after every render, and
+``--resume`` keeps the results already in it for the same settings, so an
+interrupted sweep carries on where it stopped. ``--logs LOGDIR`` keeps each
+subprocess's output (tracebacks included), ``--images IMGDIR`` each finished
+render as a PNG.
+
+Exit status: 0 when every render finished without NaN, 1 otherwise, 2 on bad
+arguments.
+"""
+
+from __future__ import annotations
+
+import argparse
+import concurrent.futures
+import json
+import os
+import re
+import signal
+import subprocess
+import sys
+import tempfile
+import threading
+import time
+
+REPO_ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+TOOLS = os.path.join(REPO_ROOT, "tools")
+
+MODES = {"path": "PATH", "biased": "RESTIR_BIASED", "unbiased": "RESTIR_UNBIASED"}
+MODE_TITLES = {"PATH": "Path Tracing", "RESTIR_BIASED": "ReSTIR Biased",
+               "RESTIR_UNBIASED": "ReSTIR Unbiased"}
+STATUSES = ("rendered", "failed", "crashed", "timeout", "nan")
+
+
+# --------------------------------------------------------------------------
+# The sweep (no bpy here)
+# --------------------------------------------------------------------------
+
+def parse_size(text: str) -> tuple[int, int]:
+    m = re.fullmatch(r"\s*(\d+)\s*(?:[xX]\s*(\d+)\s*)?", text)
+    if m is None:
+        raise argparse.ArgumentTypeError("size wants WxH (e.g. 64x64) or N")
+    w = int(m.group(1))
+    h = int(m.group(2)) if m.group(2) else w
+    if w < 4 or h < 4:
+        raise argparse.ArgumentTypeError("size must be at least 4x4")
+    return w, h
+
+
+def parse_modes(text: str) -> list[str]:
+    modes = []
+    for word in text.split(","):
+        key = word.strip()
+        mode = MODES.get(key.lower(), key.upper() if key.upper() in MODES.values() else None)
+        if mode is None:
+            raise argparse.ArgumentTypeError(
+                "unknown mode {!r}: use {} (or {})".format(
+                    key, ", ".join(MODES), ", ".join(MODES.values())))
+        if mode not in modes:
+            modes.append(mode)
+    return modes
+
+
+def parse_args(argv: list[str] | None) -> argparse.Namespace:
+    parser = argparse.ArgumentParser(
+        description="Render every .blend under DIR in every mode through the installed "
+                    "ReSTIR GI extension, one subprocess per render, and report per file and "
+                    "mode: rendered / failed / crashed / timed out / NaN, and the time.")
+    parser.add_argument("folder", metavar="DIR", nargs="?", help="folder searched for .blend files (recursively)")
+    parser.add_argument("--size", type=parse_size, default=(64, 64), metavar="WxH",
+                        help="render resolution (default 64x64)")
+    parser.add_argument("--warmup", type=int, default=16, metavar="N",
+                        help="ReSTIR warm-up frames of the still (default 16)")
+    parser.add_argument("--samples", type=int, default=None, metavar="N",
+                        help="samples per pixel in Path Tracing (default: the file's setting)")
+    parser.add_argument("--timeout", type=float, default=120.0, metavar="S",
+                        help="time limit per render in seconds, Blender's start-up included "
+                             "(default 120)")
+    parser.add_argument("--modes", type=parse_modes, default=list(MODES.values()),
+                        metavar="M,M", help="modes to render: path, biased, unbiased "
+                                            "(default: all three)")
+    parser.add_argument("--camera", action="store_true",
+                        help="frame all visible objects: add a camera to files without one, "
+                             "move the scene camera of the others")
+    parser.add_argument("--jobs", type=int, default=1, metavar="N",
+                        help="renders at the same time (default 1)")
+    parser.add_argument("--threads", type=int, default=None, metavar="N",
+                        help="render threads per render (default: the file's setting)")
+    parser.add_argument("--limit", type=int, default=None, metavar="N",
+                        help="only the first N files (sorted by path)")
+    parser.add_argument("--output", default="sweep", metavar="PATH",
+                        help="writes PATH.md and PATH.json (default: sweep in the working folder)")
+    parser.add_argument("--resume", action="store_true",
+                        help="keep the results already in PATH.json made with the same settings")
+    parser.add_argument("--logs", default=None, metavar="LOGDIR",
+                        help="keep each render's output (stdout and stderr) in LOGDIR")
+    parser.add_argument("--images", default=None, metavar="IMGDIR",
+                        help="keep each finished render as a PNG in IMGDIR")
+    parser.add_argument("--package", default=None, metavar="ZIP",
+                        help="extension package (default: dist/<id>-<version>.zip, `make build`)")
+    parser.add_argument("--user-resources", default=os.path.join(REPO_ROOT, ".blender_user"),
+                        metavar="DIR", help="Blender user folder the package is installed into "
+                                            "(default: .blender_user in the repository)")
+    parser.add_argument("--worker", default=None, help=argparse.SUPPRESS)
+    args = parser.parse_args(argv)
+    if args.worker is None:
+        if args.warmup < 1:
+            parser.error("--warmup must be at least 1")
+        if args.samples is not None and args.samples < 1:
+            parser.error("--samples must be at least 1")
+        if args.jobs < 1:
+            parser.error("--jobs must be at least 1")
+        if args.timeout <= 0:
+            parser.error("--timeout must be positive")
+        if args.folder is None:
+            parser.error("the folder DIR is required")
+        if not os.path.isdir(args.folder):
+            parser.error("not a folder: {}".format(args.folder))
+    return args
+
+
+def is_blend(path: str) -> bool:
+    """A .blend file: plain, gzip or zstd compressed (not a Git LFS pointer)."""
+    with open(path, "rb") as fh:
+        head = fh.read(7)
+    return head == b"BLENDER" or head[:2] == b"\x1f\x8b" or head[:4] == b"\x28\xb5\x2f\xfd"
+
+
+def find_blends(folder: str) -> list[str]:
+    """Paths relative to `folder` of every *.blend below it, sorted."""
+    found = []
+    for root, dirs, files in os.walk(folder):
+        dirs[:] = sorted(d for d in dirs if not d.startswith("."))
+        found += [os.path.relpath(os.path.join(root, f), folder)
+                  for f in files if f.lower().endswith(".blend")]
+    return sorted(found, key=lambda p: p.replace(os.sep, "/"))
+
+
+def settings_of(args: argparse.Namespace) -> dict:
+    """What makes results comparable: --resume keeps only results made with these."""
+    return {"size": "{}x{}".format(*args.size), "warmup": args.warmup, "samples": args.samples,
+            "camera": args.camera, "timeout": args.timeout, "threads": args.threads}
+
+
+def package_path(args: argparse.Namespace) -> str:
+    if args.package is not None:
+        return os.path.abspath(args.package)
+    import tomllib
+    with open(os.path.join(REPO_ROOT, "blender_manifest.toml"), "rb") as fh:
+        manifest = tomllib.load(fh)
+    return os.path.join(REPO_ROOT, "dist", "{}-{}.zip".format(manifest["id"], manifest["version"]))
+
+
+# Innermost frame of a traceback inside the installed package: the path after
+# the package folder (".../restir_gi/core/materials.py") is the repository's.
+FRAME_RE = re.compile(r'File "[^"]*[/\\]restir_gi[/\\]([^"]+)", line (\d+), in (\S+)')
+
+
+def innermost_frame(output: str) -> str | None:
+    frames = FRAME_RE.findall(output)
+    if not frames:
+        return None
+    path, line, func = frames[-1]
+    return "{}:{} in {}".format(path.replace("\\", "/"), line, func)
+
+
+def run_one(args: argparse.Namespace, zip_path: str, rel: str, mode: str, tmp: str) -> dict:
+    """Render one file in one mode in a subprocess; the result as a dict."""
+    tag = "{}.{}".format(re.sub(r"[^A-Za-z0-9_.-]+", "_", rel), mode)
+    spec = {"blend": os.path.join(os.path.abspath(args.folder), rel), "mode": mode,
+            "size": list(args.size), "warmup": args.warmup, "samples": args.samples,
+            "camera": args.camera, "threads": args.threads, "package": zip_path,
+            "user_resources": os.path.abspath(args.user_resources),
+            "result": os.path.join(tmp, tag + ".json"),
+            "image": os.path.join(tmp, tag + ".exr"),
+            "png": os.path.join(os.path.abspath(args.images), tag + ".png") if args.images else None}
+    log_path = os.path.join(args.logs or tmp, tag + ".log")
+    entry = {"file": rel.replace(os.sep, "/"), "mode": mode}
+    t0 = time.perf_counter()
+    with open(log_path, "w+", errors="replace") as log:
+        # A session of its own: a render that runs over its time is killed
+        # with everything it started.
+        proc = subprocess.Popen([sys.executable, os.path.abspath(__file__),
+                                 "--worker", json.dumps(spec)],
+                                stdout=log, stderr=subprocess.STDOUT, cwd=tmp,
+                                start_new_session=True)
+        try:
+            code = proc.wait(timeout=args.timeout)
+        except subprocess.TimeoutExpired:
+            if hasattr(os, "killpg"):
+                os.killpg(proc.pid, signal.SIGKILL)
+            else:
+                proc.kill()
+            proc.wait()
+            code = None
+        log.seek(0)
+        output = log.read()
+    entry["wall_seconds"] = round(time.perf_counter() - t0, 2)
+    result = None
+    if code is not None and os.path.isfile(spec["result"]):
+        with open(spec["result"]) as fh:
+            result = json.load(fh)
+    for path in (spec["result"], spec["image"]) + (() if args.logs else (log_path,)):
+        if os.path.exists(path):
+            os.remove(path)
+    if result is not None:
+        entry.update(result)
+    if code is None:
+        entry.update(status="timeout", error="still running after {:g} s".format(args.timeout))
+    elif code < 0:
+        try:
+            name = signal.Signals(-code).name
+        except ValueError:
+            name = "signal {}".format(-code)
+        entry.update(status="crashed", error="killed by {}{}".format(
+            name, " after the render finished" if result is not None else ""))
+    elif result is None:
+        entry.update(status="crashed", error="exited with status {} without a result".format(code))
+    if entry["status"] in ("failed", "crashed"):
+        where = innermost_frame(output)
+        if where:
+            entry["where"] = where
+    return entry
+
+
+def install(args: argparse.Namespace, zip_path: str, tmp: str) -> None:
+    """Install (or enable) the package once before the renders start."""
+    spec = {"install_only": True, "package": zip_path,
+            "user_resources": os.path.abspath(args.user_resources)}
+    proc = subprocess.run([sys.executable, os.path.abspath(__file__), "--worker", json.dumps(spec)],
+                          stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, cwd=tmp,
+                          timeout=600)
+    if proc.returncode != 0:
+        sys.exit("[sweep] error: installing the extension failed:\n" + proc.stdout)
+
+
+def cell(entry: dict | None) -> str:
+    if entry is None:
+        return "-"
+    status = entry["status"]
+    if status == "rendered":
+        return "{:.1f} s".format(entry["seconds"])
+    if status == "nan":
+        return "**NaN** {} px, {:.1f} s".format(entry["bad_pixels"], entry["seconds"])
+    return "**{}**".format(status)
+
+
+def write_report(path: str, args: argparse.Namespace, files: list[str], skipped: list[str],
+                 results: dict, command: str) -> None:
+    modes = args.modes
+    lines = ["# Sweep: {} files, {}".format(len(files), ", ".join(MODE_TITLES[m] for m in modes)), ""]
+    lines += ["```sh", command, "```", ""]
+    lines += ["{}, {} warm-up frames (ReSTIR), {} samples (Path Tracing), {} s limit per "
+              "render{}.".format("{}x{}".format(*args.size), args.warmup,
+                                 args.samples if args.samples else "the file's",
+                                 "{:g}".format(args.timeout),
+                                 ", camera framing all visible objects" if args.camera else ""), ""]
+    lines += ["| mode | files | " + " | ".join(STATUSES) + " | median time |",
+              "|---|---:|" + "---:|" * len(STATUSES) + "---:|"]
+    for mode in modes:
+        done = [results[(f, mode)] for f in files if (f, mode) in results]
+        counts = [sum(e["status"] == s for e in done) for s in STATUSES]
+        times = sorted(e["seconds"] for e in done if e.get("seconds") is not None)
+        median = "{:.1f} s".format(times[len(times) // 2]) if times else "-"
+        lines.append("| {} | {} | {} | {} |".format(MODE_TITLES[mode], len(done),
+                                                    " | ".join(map(str, counts)), median))
+    lines += ["", "Times are the render alone (Blender's start-up and the file's loading "
+                  "not counted).", ""]
+    problems = [results[(f, m)] for f in files for m in modes
+                if (f, m) in results and results[(f, m)]["status"] != "rendered"]
+    if problems:
+        lines += ["## Problems", "", "| file | mode | result | error |", "|---|---|---|---|"]
+        for e in problems:
+            error = e.get("error", "")
+            if e.get("where"):
+                error += " (at {})".format(e["where"])
+            if e["status"] == "nan":
+                error = "{} NaN, {} Inf pixels".format(e.get("nan_pixels", 0), e.get("inf_pixels", 0))
+            lines.append("| {} | {} | {} | {} |".format(
+                e["file"], MODE_TITLES[e["mode"]], e["status"], error.replace("|", "\\|")))
+        lines.append("")
+    lines += ["## Files", "", "| file | " + " | ".join(MODE_TITLES[m] for m in modes) + " |",
+              "|---|" + "---:|" * len(modes)]
+    for f in files:
+        lines.append("| {} | {} |".format(f.replace(os.sep, "/"),
+                                          " | ".join(cell(results.get((f, m))) for m in modes)))
+    if skipped:
+        lines += ["", "Skipped (not .blend files, e.g. Git LFS pointers): "
+                  + ", ".join(s.replace(os.sep, "/") for s in skipped) + "."]
+    with open(path, "w") as fh:
+        fh.write("\n".join(lines) + "\n")
+
+
+def display_command(argv: list[str], args: argparse.Namespace) -> str:
+    """The command line as given, with the folder written DIR and other
+    absolute paths by their role, so the report names no path of this machine."""
+    placeholders = {"--logs": "LOGDIR", "--images": "IMGDIR", "--package": "ZIP", "--user-resources": "USERDIR",
+                    "--output": "OUTPUT"}
+    words, previous = ["python bench/sweep.py"], None
+    for arg in argv:
+        if arg == args.folder:
+            arg = "DIR"
+        elif previous in placeholders and os.path.isabs(arg):
+            arg = placeholders[previous]
+        elif "=" in arg and arg.split("=", 1)[0] in placeholders and os.path.isabs(arg.split("=", 1)[1]):
+            arg = "{}={}".format(arg.split("=", 1)[0], placeholders[arg.split("=", 1)[0]])
+        words.append(arg if re.fullmatch(r"[\w.,:=/+-]+", arg) else repr(arg))
+        previous = arg
+    return " ".join(words)
+
+
+def main(argv: list[str] | None = None) -> int:
+    argv = sys.argv[1:] if argv is None else argv
+    args = parse_args(argv)
+    if args.worker is not None:
+        return worker(json.loads(args.worker))
+
+    zip_path = package_path(args)
+    if not os.path.isfile(zip_path):
+        sys.exit("[sweep] error: extension package not found: {} (build it with `make build`)"
+                 .format(os.path.relpath(zip_path)))
+    all_files = find_blends(args.folder)
+    skipped = [f for f in all_files if not is_blend(os.path.join(args.folder, f))]
+    files = [f for f in all_files if f not in skipped][:args.limit]
+    if not files:
+        sys.exit("[sweep] error: no .blend files under {}".format(args.folder))
+    for folder in (args.logs, args.images):
+        if folder:
+            os.makedirs(folder, exist_ok=True)
+    out_dir = os.path.dirname(os.path.abspath(args.output))
+    os.makedirs(out_dir, exist_ok=True)
+    json_path, md_path = args.output + ".json", args.output + ".md"
+
+    settings = settings_of(args)
+    results: dict[tuple[str, str], dict] = {}
+    if args.resume and os.path.isfile(json_path):
+        with open(json_path) as fh:
+            old = json.load(fh)
+        if old.get("settings") == settings:
+            results = {(e["file"], e["mode"]): e for e in old["results"] if e["file"] in files}
+            print("[sweep] resuming: {} results kept".format(len(results)), flush=True)
+        else:
+            print("[sweep] not resuming: {} was made with other settings".format(json_path))
+    results = {(f.replace("/", os.sep), m): e for (f, m), e in results.items()}
+    todo = [(f, m) for f in files for m in args.modes if (f, m) not in results]
+    print("[sweep] {} files, {} renders to do ({} modes, {}x{}, {} s limit, {} job{})".format(
+        len(files), len(todo), len(args.modes), *args.size, args.timeout, args.jobs,
+        "" if args.jobs == 1 else "s"), flush=True)
+
+    command = display_command(argv, args)
+    lock = threading.Lock()
+
+    def save() -> None:
+        data = {"settings": settings, "modes": args.modes,
+                "results": [results[(f, m)] for f in files for m in args.modes
+                            if (f, m) in results]}
+        with open(json_path + ".tmp", "w") as fh:
+            json.dump(data, fh, indent=1)
+        os.replace(json_path + ".tmp", json_path)
+        write_report(md_path, args, files, skipped, results, command)
+
+    with tempfile.TemporaryDirectory(prefix="restir-sweep-") as tmp:
+        install(args, zip_path, tmp)
+        done = [0]
+
+        def task(item):
+            rel, mode = item
+            entry = run_one(args, zip_path, rel, mode, tmp)
+            with lock:
+                results[item] = entry
+                done[0] += 1
+                detail = entry.get("error", "")
+                if entry["status"] == "nan":
+                    detail = "{} bad pixels".format(entry["bad_pixels"])
+                print("[sweep] {}/{} {} {}: {} {:.1f} s {}".format(
+                    done[0], len(todo), entry["file"], MODE_TITLES[mode], entry["status"],
+                    entry.get("seconds") or entry["wall_seconds"], detail).rstrip(), flush=True)
+                save()
+
+        save()
+        with concurrent.futures.ThreadPoolExecutor(max_workers=args.jobs) as pool:
+            for future in [pool.submit(task, item) for item in todo]:
+                future.result()
+    save()
+    bad = [e for e in results.values() if e["status"] != "rendered"]
+    for mode in args.modes:
+        counts = {s: sum(1 for (f, m), e in results.items() if m == mode and e["status"] == s)
+                  for s in STATUSES}
+        print("[sweep] {}: {}".format(MODE_TITLES[mode], ", ".join(
+            "{} {}".format(n, s) for s, n in counts.items())))
+    print("[sweep] wrote {} and {}".format(md_path, json_path))
+    return 1 if bad else 0
+
+
+# --------------------------------------------------------------------------
+# One render (in its own subprocess, imports bpy)
+# --------------------------------------------------------------------------
+
+GEOMETRY_TYPES = {"MESH", "CURVE", "SURFACE", "META", "FONT", "CURVES", "POINTCLOUD", "VOLUME"}
+# Blender's default camera: looking down from the front right.
+DEFAULT_CAMERA_ROTATION = (1.1093, 0.0, 0.8149)
+
+
+def visible_corners(bpy, depsgraph):
+    """World-space corners of the bounding boxes of all visible geometry (N, 3)."""
+    import numpy as np
+    corners = []
+    for inst in depsgraph.object_instances:
+        ob = inst.object
+        if ob.type not in GEOMETRY_TYPES or ob.original.hide_render:
+            continue
+        box = np.array([tuple(c) for c in ob.bound_box], float)
+        m = np.array(inst.matrix_world, float)
+        corners.append(box @ m[:3, :3].T + m[:3, 3])
+    if not corners:
+        return np.zeros((0, 3))
+    pts = np.concatenate(corners)
+    return pts[np.isfinite(pts).all(axis=1)]
+
+
+def frame_camera(bpy, scene) -> str:
+    """Make the scene camera frame every visible object; what was done, in words."""
+    import numpy as np
+    from mathutils import Euler, Vector
+    depsgraph = bpy.context.evaluated_depsgraph_get()
+    pts = visible_corners(bpy, depsgraph)
+    cam = scene.camera
+    if cam is None or cam.type != 'CAMERA':
+        data = bpy.data.cameras.new("SweepCamera")
+        cam = bpy.data.objects.new("SweepCamera", data)
+        scene.collection.objects.link(cam)
+        cam.rotation_euler = Euler(DEFAULT_CAMERA_ROTATION)
+        cam.location = (7.36, -6.93, 4.96)
+        scene.camera = cam
+        what = "added a camera"
+    else:
+        # Keep where it looks, drop what would move it at render time.
+        world = cam.matrix_world.copy()
+        cam.parent = None
+        cam.constraints.clear()
+        cam.animation_data_clear()
+        cam.data.animation_data_clear()
+        cam.matrix_world = world
+        what = "moved the scene camera"
+    if len(pts) == 0:
+        return what + " (no visible geometry to frame)"
+    bpy.context.view_layer.update()
+    depsgraph = bpy.context.evaluated_depsgraph_get()
+    location, scale = cam.camera_fit_coords(depsgraph, [float(x) for x in pts.ravel()])
+    cam.location = location
+    if cam.data.type == 'ORTHO':
+        cam.data.ortho_scale = scale
+    bpy.context.view_layer.update()
+    forward = -np.array(cam.matrix_world.to_3x3().col[2], float)
+    depth = (pts - np.array(cam.matrix_world.translation, float)) @ forward
+    near, far = float(depth.min()), float(depth.max())
+    size = float(np.linalg.norm(pts.max(axis=0) - pts.min(axis=0))) or 1.0
+    cam.data.clip_end = max(cam.data.clip_end, 1.5 * far + 0.1 * size)
+    cam.data.clip_start = min(cam.data.clip_start, max(0.5 * near, 1e-4 * size, 1e-5))
+    return what
+
+
+def worker(spec: dict) -> int:
+    """Render spec['blend'] in spec['mode']; write the outcome to spec['result']."""
+    sys.path.insert(0, TOOLS)
+    import render as render_tool  # tools/render.py: the installation as `make render` does it
+
+    user_resources = spec["user_resources"]
+    os.environ["BLENDER_USER_RESOURCES"] = user_resources
+    site_packages = render_tool.extension_site_packages(user_resources)
+    os.makedirs(site_packages, exist_ok=True)
+    sys.path.insert(0, site_packages)
+    import bpy
+    with render_tool.install_lock(user_resources):
+        pkg_id = render_tool.extension_id_and_zip()[0]
+        render_tool.install_or_enable(bpy, pkg_id, spec["package"], user_resources)
+    if spec.get("install_only"):
+        return 0
+
+    def finish(outcome: dict) -> None:
+        with open(spec["result"] + ".tmp", "w") as fh:
+            json.dump(outcome, fh)
+        os.replace(spec["result"] + ".tmp", spec["result"])
+
+    try:
+        bpy.ops.wm.open_mainfile(filepath=spec["blend"], load_ui=False)
+    except RuntimeError as exc:
+        # Errors while reading (e.g. sequencer strips Blender drops) raise
+        # here although the file was opened; `blender -b` carries on too.
+        if os.path.normcase(os.path.abspath(bpy.data.filepath)) != os.path.normcase(spec["blend"]):
+            finish({"status": "failed", "error": "could not open the file: {}".format(
+                str(exc).strip().splitlines()[0])})
+            return 1
+        print("[sweep] opened with errors: {}".format(exc), flush=True)
+    scene = bpy.context.scene
+    render = scene.render
+    render.engine = render_tool.ENGINE_ID
+    render.resolution_x, render.resolution_y = spec["size"]
+    render.resolution_percentage = 100
+    settings = scene.restir_gi
+    settings.mode = spec["mode"]
+    settings.warmup_frames = spec["warmup"]
+    if spec["samples"]:
+        settings.samples = spec["samples"]
+    if spec["threads"]:
+        render.threads_mode = 'FIXED'
+        render.threads = spec["threads"]
+    camera = frame_camera(bpy, scene) if spec["camera"] else None
+    if camera:
+        print("[sweep] " + camera, flush=True)
+
+    t0 = [time.perf_counter()]
+
+    # A Python exception escaping the engine is printed by Blender, which
+    # carries on with an empty image: count it as a failure and stop.
+    default_hook = sys.excepthook
+
+    def excepthook(exc_type, exc, tb):
+        default_hook(exc_type, exc, tb)
+        finish({"status": "failed", "error": "{}: {}".format(exc_type.__name__, exc).splitlines()[0],
+                "seconds": round(time.perf_counter() - t0[0], 2)})
+        sys.stdout.flush()
+        sys.stderr.flush()
+        os._exit(1)
+
+    sys.excepthook = excepthook
+    t0[0] = time.perf_counter()
+    try:
+        bpy.ops.render.render(write_still=False)
+    except RuntimeError as exc:
+        # Blender joins the engine's ERROR reports into the message: "Error: ...".
+        lines = [ln.strip() for ln in str(exc).splitlines() if ln.strip()]
+        first = re.sub(r"^Error:\s*", "", lines[0]) if lines else "render failed"
+        finish({"status": "failed", "error": first,
+                "seconds": round(time.perf_counter() - t0[0], 2)})
+        return 1
+    finally:
+        sys.excepthook = default_hook
+    seconds = round(time.perf_counter() - t0[0], 2)
+
+    # The Combined pass, as a 32-bit float EXR, read back for NaN and Inf.
+    image_settings = render.image_settings
+    image_settings.file_format = 'OPEN_EXR'
+    image_settings.color_depth = '32'
+    result_image = bpy.data.images['Render Result']
+    result_image.save_render(spec["image"], scene=scene)
+    if spec["png"]:
+        image_settings.file_format = 'PNG'
+        image_settings.color_depth = '8'
+        result_image.save_render(spec["png"], scene=scene)
+    import numpy as np
+    image = bpy.data.images.load(spec["image"])
+    pixels = np.empty(len(image.pixels), np.float32)
+    image.pixels.foreach_get(pixels)
+    pixels = pixels.reshape(-1, image.channels)
+    nan = int(np.isnan(pixels).any(axis=1).sum())
+    inf = int(np.isinf(pixels).any(axis=1).sum())
+    outcome = {"status": "nan" if nan or inf else "rendered", "seconds": seconds,
+               "nan_pixels": nan, "inf_pixels": inf, "bad_pixels": int((~np.isfinite(pixels)).any(axis=1).sum())}
+    if camera:
+        outcome["camera"] = camera
+    finish(outcome)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
