@@ -3,6 +3,7 @@
 import bpy
 
 from . import final, viewport
+from .export import images
 from .passes import register_passes
 
 
@@ -13,7 +14,8 @@ class RestirGIRenderEngine(bpy.types.RenderEngine):
     bl_use_postprocess = True
 
     def render(self, depsgraph):
-        final.render(self, depsgraph)
+        with images.rendering():        # no temporary image is removed meanwhile
+            final.render(self, depsgraph)
 
     def update_render_passes(self, scene=None, renderlayer=None):
         register_passes(self, scene, renderlayer)
@@ -33,4 +35,6 @@ def register():
 
 
 def unregister():
+    if bpy.app.timers.is_registered(images.sweep):
+        bpy.app.timers.unregister(images.sweep)
     bpy.utils.unregister_class(RestirGIRenderEngine)

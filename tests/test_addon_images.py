@@ -342,3 +342,57 @@ def test14_image_sequences_follow_the_frame_in_renders(bpy_env, tmp_path, persis
     bpy.ops.render.render(write_still=True)
     assert float(read_exr(tmp_path / "still.exr")[..., :3].mean()) == pytest.approx(values[1] / 255.0, rel=0.02)
     bpy.data.materials.remove(mat)
+
+
+def test15_no_datablock_is_removed_while_rendering(bpy_env):
+    """Removing a datablock during an animation render with Persistent Data
+    crashes Blender 5.2 in the next frame's depsgraph update: temporary images
+    read during a final render are kept, their pixels freed, until sweep()
+    runs once no render does; outside renders they go at once."""
+    from restir_gi.restir_addon.export import images
+    bpy = bpy_env.bpy
+    for frame, value in ((1, 50), (2, 150)):
+        write_png(str(bpy_env.dir / f"seq_{frame:04d}.png"),
+                  np.full((1, 1, 4), [value, value, value, 255], np.uint8))
+    img = bpy.data.images.load(str(bpy_env.dir / "seq_0001.png"))
+    img.source = "SEQUENCE"
+    img.colorspace_settings.name = "Non-Color"
+    udim = _udim_from_files(bpy_env, {1001: ([255, 0, 0], (2, 2)), 1002: ([0, 255, 0], (2, 2))})
+    mat = bpy.data.materials.new("seq_mat")
+    node = mat.node_tree.nodes.new("ShaderNodeTexImage")
+    node.image = img
+    node.image_user.frame_duration = 2
+    n_images = len(bpy.data.images)
+    cache = bpy_env.cache()
+    with images.rendering():
+        k1, k2 = cache.key(img, node.image_user, 1), cache.key(img, node.image_user, 2)
+        cache.key(udim)
+        kept = [im for im in bpy.data.images if im.name.startswith(images.TEMPORARY)]
+        assert len(kept) == 3 and len(bpy.data.images) == n_images + 3
+        assert all(not im.has_data for im in kept)                   # pixels freed
+        assert images.sweep() == images.SWEEP_INTERVAL              # still rendering: try later
+        assert len(bpy.data.images) == n_images + 3
+    assert read_back(cache.get(k2), 1, 1)[0, 0, 0] == pytest.approx(150 / 255)
+    assert images.sweep() is None and len(bpy.data.images) == n_images
+    cache.key(img, node.image_user, 3)                               # outside a render: at once
+    assert len(bpy.data.images) == n_images
+    bpy.data.materials.remove(mat)
+
+
+def test16_large_images_average_boxes_of_texels(bpy_env, rng):
+    """The halving averages each box of texels (a box filter, as Blender's
+    Image.scale for whole ratios) from the pixels as they are, unsaved paint
+    included, without a temporary copy."""
+    from restir_gi.restir_addon.export.images import shrink
+    bpy = bpy_env.bpy
+    px = rng.random((20, 64, 4)).astype(np.float32)
+    img = bpy.data.images.new("painted", 64, 20, float_buffer=True)
+    img.colorspace_settings.name = "Non-Color"
+    img.pixels.foreach_set(px.ravel())
+    n_images = len(bpy.data.images)
+    cache = bpy_env.cache(max_size=16)
+    stored = cache.get(cache.key(img)).tiles[1001].pixels
+    np.testing.assert_allclose(stored, px.reshape(5, 4, 16, 4, 4).mean(axis=(1, 3)), atol=1e-6)
+    assert len(bpy.data.images) == n_images
+    odd = shrink(np.arange(5, dtype=np.float32).reshape(1, 5, 1), 2, 1)
+    np.testing.assert_allclose(odd.ravel(), [0.5, 3.0])            # boxes of 2 and 3 texels

@@ -24,15 +24,23 @@ every node using the image shares the one ImageSet. What Blender hands over
 - Missing files, unreadable or empty images: Cycles' 1 x 1 magenta, with a
   warning naming the image and its file.
 - Large images: a long side above ``max_size`` (8192) is halved until it fits
-  (Cycles' texture-limit rule), read from a scaled temporary copy, with a
-  warning giving both sizes. A 16384^2 image would otherwise take 4 GB as
-  float32 RGBA while being read.
-Temporary images are removed before returning; the user's images are never
-modified.
+  (Cycles' texture-limit rule) by averaging boxes of texels (``shrink``, a
+  box filter) from the pixels as they are, unsaved paint included, with a
+  warning giving both sizes. Bands of rows are averaged at a time: the only
+  full-size array is the one read.
+- Temporary images (sequence frames, UDIM copies) are named ``TEMPORARY``
+  (a leading dot hides them in Blender's lists) and removed after reading,
+  except while a final render runs (``rendering()``, or a render job in the
+  UI): removing a datablock then makes Blender 5.2 crash in the depsgraph
+  update of the next frame of an animation with Persistent Data. They are
+  kept, their pixels freed, until ``sweep()`` removes them once no render
+  runs (a timer in the UI, or the next read outside a render). The user's
+  images are never modified.
 """
 
 import os
 import re
+from contextlib import contextmanager
 
 import numpy as np
 
@@ -45,6 +53,74 @@ LINEAR_SPACES = {"Linear Rec.709", "Working Space", "Linear", "scene_linear"}
 OTHER_LINEAR_SPACES = {"Linear Rec.2020", "ACEScg", "ACES2065-1", "Linear CIE-XYZ D65",
                        "Linear CIE-XYZ E", "Linear DCI-P3 D65", "Linear FilmLight E-Gamut"}
 NONE_KEY = "<no image>"
+TEMPORARY = ".restir_gi temporary"
+
+_renders = 0            # final renders running in this process (rendering())
+SWEEP_INTERVAL = 1.0    # seconds between the timer's tries while a render runs
+
+
+@contextmanager
+def rendering():
+    """Marks a final render: temporary images made meanwhile are kept until
+    it ends (the engine's render() runs inside it)."""
+    global _renders
+    _renders += 1
+    try:
+        yield
+    finally:
+        _renders -= 1
+
+
+def _removal_safe():
+    """No final render runs: neither one of this process's (rendering()) nor a
+    render job of the UI (whose depsgraph a viewport read must not disturb)."""
+    import bpy
+    return _renders == 0 and not bpy.app.is_job_running("RENDER")
+
+
+def _temporaries():
+    import bpy
+    return [im for im in bpy.data.images
+            if im.name.startswith(TEMPORARY) and im.users == 0 and im.library is None]
+
+
+def sweep():
+    """Remove the temporary images kept during renders once none runs. A
+    bpy.app.timers function: returns the seconds to the next try, or None."""
+    import bpy
+    if not _removal_safe():
+        return SWEEP_INTERVAL
+    for im in _temporaries():
+        bpy.data.images.remove(im)
+    return None
+
+
+def _discard(image):
+    """Remove a temporary image now, or keep it (pixels freed) for sweep()."""
+    import bpy
+    if _removal_safe():
+        bpy.data.images.remove(image)
+        return
+    image.buffers_free()
+    if not bpy.app.timers.is_registered(sweep):
+        bpy.app.timers.register(sweep, first_interval=SWEEP_INTERVAL, persistent=True)
+
+
+def shrink(pixels, width, height):
+    """(H, W, C) pixels averaged down to (height, width, C): each output texel
+    the mean of its box of input texels (whole texels; box sizes differ by at
+    most one). Bands of output rows are made one at a time."""
+    h, w = pixels.shape[:2]
+    ey = (np.arange(height + 1) * h) // height
+    ex = (np.arange(width + 1) * w) // width
+    wx = (1.0 / np.diff(ex)).astype(np.float32)[:, None]
+    out = np.empty((height, width) + pixels.shape[2:], np.float32)
+    for j0 in range(0, height, 256):
+        j1 = min(j0 + 256, height)
+        rows = np.add.reduceat(pixels[ey[j0]:ey[j1]], ey[j0:j1] - ey[j0], axis=0)
+        rows *= (1.0 / np.diff(ey[j0:j1 + 1])).astype(np.float32)[:, None, None]
+        out[j0:j1] = np.add.reduceat(rows, ex[:-1], axis=1) * wx
+    return out
 
 
 def sequence_frame(image_user, scene_frame):
@@ -123,6 +199,8 @@ class ImageCache:
             frame = sequence_frame(image_user, scene_frame) if image_user is not None else 1
             key = f"{key}@{frame}"
         if key not in self._sets:
+            if _removal_safe():
+                sweep()
             self._sets[key] = self._read(image, frame)
         return key
 
@@ -156,12 +234,13 @@ class ImageCache:
                 self.warn(f"Image '{name}': unsaved changes to UDIM tiles after {numbers[0]} "
                           "are not rendered; save the image")
             copy = image.copy()
+            copy.name = TEMPORARY
             try:
                 for n in numbers[1:]:
                     copy.tiles.remove(copy.tiles[0])
                     tiles[n] = self._read_image(copy, f"{name} tile {n}", tile_path(path, n))
             finally:
-                bpy.data.images.remove(copy)
+                _discard(copy)
         return ImageSet(tiles, tiled=True, name=name)
 
     def _read_file(self, like, path, label):
@@ -171,17 +250,17 @@ class ImageCache:
             self.warn(f"Image '{label}': cannot read '{path}'; it renders magenta")
             return from_pixels(np.zeros((0, 0, 4), np.float32), label)
         tmp = bpy.data.images.load(path, check_existing=False)
+        tmp.name = TEMPORARY
         try:
             tmp.colorspace_settings.name = like.colorspace_settings.name
             tmp.alpha_mode = like.alpha_mode
             return self._read_image(tmp, label, path)
         finally:
-            bpy.data.images.remove(tmp)
+            _discard(tmp)
 
     def _read_image(self, image, label, path=None):
         """The first (or only) tile's pixels as a core Image (magenta on failure);
         path names the file in warnings."""
-        import bpy
         pixels = self._pixels(image)
         if pixels is None:
             path = path or (_abspath(image) if image.filepath_raw else "")
@@ -196,16 +275,7 @@ class ImageCache:
             w2, h2 = max(1, int(w * scale)), max(1, int(h * scale))
             self.warn(f"Image '{label}': {w} x {h} is larger than {self.max_size}; "
                       f"rendering it at {w2} x {h2}")
-            del pixels
-            small = image.copy()
-            try:
-                small.scale(w2, h2)
-                pixels = self._pixels(small)
-            finally:
-                bpy.data.images.remove(small)
-            if pixels is None:
-                self.warn(f"Image '{label}': could not be scaled; it renders magenta")
-                return from_pixels(np.zeros((0, 0, 4), np.float32), label)
+            pixels = shrink(pixels, w2, h2)
         return self._to_core(image, pixels, label)
 
     @staticmethod
