@@ -411,6 +411,43 @@ def test_light_without_shadows_is_exported(addon):
     assert not [w for w in s.warnings if "Cast Shadow" in w], s.warnings
 
 
+def _light_tree(light):
+    """A light's node tree: there by default from Blender 5.2 (where use_nodes
+    is deprecated and always on), made by turning use_nodes on before."""
+    if light.node_tree is None:
+        light.use_nodes = True
+    return light.node_tree
+
+
+def test_light_node_trees_scale_the_power(addon):
+    """A light's Emission colour x strength multiplies its power, whether the
+    tree is the plain Emission node (read off its sockets) or a graph (compiled);
+    the default tree leaves the power alone. The export reads no deprecated
+    property (Light.use_nodes warns from Blender 5.2 on)."""
+    import warnings
+    fresh()
+    add_light("plain", "POINT", energy=10.0)
+    tinted = _light_tree(add_light("tinted", "POINT", energy=10.0).data)
+    emit = next(n for n in tinted.nodes if n.type == "EMISSION")
+    emit.inputs["Color"].default_value = (0.5, 1.0, 0.25, 1.0)
+    emit.inputs["Strength"].default_value = 2.0
+    graph = _light_tree(add_light("graph", "POINT", energy=10.0).data)
+    emit = next(n for n in graph.nodes if n.type == "EMISSION")
+    emit.inputs["Color"].default_value = (0.5, 1.0, 0.25, 1.0)
+    value = graph.nodes.new("ShaderNodeValue")
+    value.outputs[0].default_value = 3.0
+    graph.links.new(value.outputs[0], emit.inputs["Strength"])
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        s = export(addon)
+    assert not [w for w in caught if "removed in Blender" in str(w.message)], \
+        [str(w.message) for w in caught]
+    np.testing.assert_allclose(light(s, "plain")["power"], (10, 10, 10), rtol=1e-6)
+    np.testing.assert_allclose(light(s, "tinted")["power"], (10, 20, 5), rtol=1e-6)
+    np.testing.assert_allclose(light(s, "graph")["power"], (15, 30, 7.5), rtol=1e-6)
+    assert not s.warnings, s.warnings
+
+
 def test_negative_light_power_emits_nothing_and_says_so(addon):
     """Cycles subtracts the light of a negative power; the engine leaves the
     light out and warns."""

@@ -24,7 +24,6 @@ FRAMES = (1, 2, 3, 4)
 def _principled(name, color):
     import bpy
     mat = bpy.data.materials.new(name)
-    mat.use_nodes = True
     mat.node_tree.nodes["Principled BSDF"].inputs["Base Color"].default_value = (*color, 1.0)
     return mat
 
@@ -194,7 +193,6 @@ def test_lights_are_kept_while_only_other_objects_move(addon, reports, tmp_path)
     add_mesh("Floor", *rect(-2, 2, -2, 2))
     camera(location=(0, 0, 5), type="ORTHO", ortho_scale=4.0)
     glow = bpy.data.materials.new("Glow")
-    glow.use_nodes = True
     glow.node_tree.nodes["Principled BSDF"].inputs["Emission Strength"].default_value = 5.0
     glow.node_tree.nodes["Principled BSDF"].inputs["Emission Color"].default_value = (1, 1, 1, 1)
     box, lamp = _box("Box", (0, 0, 0)), _box("Lamp", (1, 1, 0), size=0.2, mat=glow)

@@ -81,7 +81,8 @@ def _scene(source):
         # Colour temperature and a light node tree (Emission colour x strength).
         spot = _light("Spot", "SPOT", (0.2, 0.1, 4.5), energy=1000.0, spot_size=math.radians(60),
                       spot_blend=0.3, shadow_soft_size=0.1, use_temperature=True, temperature=3200.0)
-        spot.data.use_nodes = True
+        if spot.data.node_tree is None:         # a light's tree is there by default from 5.2
+            spot.data.use_nodes = True
         emission = next(n for n in spot.data.node_tree.nodes if n.type == "EMISSION")
         emission.inputs["Strength"].default_value = 2.0
         emission.inputs["Color"].default_value = (0.9, 1.0, 0.8, 1)

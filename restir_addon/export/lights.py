@@ -4,6 +4,7 @@ import numpy as np
 
 from ...core.shader.nodes_spectrum import blackbody_rec709
 from .node_graph import translate
+from .node_values import uses_nodes
 
 from ...core.scene import (LIGHT_AREA, LIGHT_POINT, LIGHT_SPOT, LIGHT_SUN, SHAPE_DISK,
                            SHAPE_ELLIPSE, SHAPE_RECTANGLE, SHAPE_SQUARE)
@@ -63,7 +64,7 @@ def light_row(light_object, matrix, warn):
         row["power"] = np.zeros(3)
     if getattr(light, "use_temperature", False):
         row["power"] = row["power"] * blackbody_rec709(np.float32(light.temperature)).ravel()
-    if getattr(light, "use_nodes", False) and light.node_tree is not None:
+    if uses_nodes(light):
         row["power"] = row["power"] * _node_emission(light, warn)
     if not getattr(light, "normalize", True):
         row["power"] = row["power"] * _unnormalized_factor(row)
@@ -76,6 +77,9 @@ def _node_emission(light, warn):
     light's nodes vary over the light, which is not modelled: a warning, and
     the value they give at the light's centre."""
     from ...core.shader import CompiledShader, WorldGeometry   # noqa: PLC0415
+    plain = _plain_emission(light.node_tree)
+    if plain is not None:
+        return plain
     graph = translate(light.node_tree, ("OUTPUT_LIGHT",), None, light.name)
     if graph.output is None:
         return np.ones(3)
@@ -85,6 +89,24 @@ def _node_emission(light, warn):
              f"at one point")
     closure = shader.closure(WorldGeometry(np.float32([[0.0, 0.0, 1.0]])))
     return np.asarray(closure.get("emission", 1)[0], np.float64)
+
+
+def _plain_emission(tree):
+    """Colour x strength of a tree that is one Emission node feeding the Light
+    Output and nothing else, read off its sockets; None for any other tree.
+    Every light has that tree from Blender 5.2 on, where it always renders:
+    this spares each light a graph compilation (0.2 ms)."""
+    nodes, links = tree.nodes, tree.links
+    if len(nodes) != 2 or len(links) != 1:
+        return None
+    link = links[0]
+    emit, out = link.from_node, link.to_node
+    if (emit.type != "EMISSION" or out.type != "OUTPUT_LIGHT" or emit.mute or link.is_muted
+            or not link.is_valid or link.from_socket != emit.outputs[0]
+            or link.to_socket != out.inputs[0] or any(i.is_linked for i in emit.inputs)):
+        return None
+    color = emit.inputs["Color"].default_value
+    return np.array(color[:3], np.float64) * float(emit.inputs["Strength"].default_value)
 
 
 def _unnormalized_factor(row):

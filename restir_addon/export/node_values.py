@@ -176,6 +176,12 @@ def curve_tables(mapping, rgb):
 
 
 def uses_nodes(datablock):
-    """Node-based shading: always in Blender 5 (where use_nodes is deprecated),
-    the datablock's own switch before."""
-    return bpy.app.version >= (5, 0, 0) or datablock.use_nodes
+    """Whether a material, world or light renders through its node tree. Where
+    ``use_nodes`` is deprecated (materials and worlds from Blender 5.0, lights
+    from 5.2: their trees exist by default and always render, the switch is
+    stuck on) the tree counts whenever there is one, and the property is not
+    read (that warns); before, the datablock's own switch."""
+    prop = datablock.bl_rna.properties.get("use_nodes")
+    if prop is None or getattr(prop, "is_deprecated", False):
+        return datablock.node_tree is not None
+    return bool(datablock.use_nodes) and datablock.node_tree is not None
