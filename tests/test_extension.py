@@ -1,10 +1,19 @@
-"""The extension package: build, validate, contents, install, headless render.
+"""The extension packages: build, validate, contents, install, headless render.
+
+`make build` writes one package per platform of the manifest (Blender's
+``blender_ext.py build --split-platforms``), each holding the embreex and
+OpenEXR wheels of its own platform for every Python Blender runs on (3.11:
+Blender 4.2 LTS to 5.0; 3.13: 5.1 and 5.2 LTS; 3.14: Linux distributions'
+builds), and a copy of this machine's package under the plain name
+``<id>-<version>.zip``, which the install and render tests use.
 
 Everything that needs a fresh Blender (BLENDER_USER_RESOURCES is read when bpy
 is imported) runs in a subprocess of the same Python.
 """
 
 import glob
+import hashlib
+import importlib.util
 import json
 import os
 import subprocess
@@ -22,6 +31,46 @@ with open(os.path.join(REPO_ROOT, "blender_manifest.toml"), "rb") as _fh:
     MANIFEST = tomllib.load(_fh)
 PKG_ID = MANIFEST["id"]
 MODULE = "bl_ext.user_default." + PKG_ID
+PLATFORMS = ("linux-x64", "macos-arm64", "macos-x64", "windows-x64")
+# CPython of Blender 4.2 LTS to 5.0, of 5.1 and 5.2 LTS, and of Linux
+# distributions' Blender built against their own Python (Debian's 5.2: 3.14).
+PYTHONS = ("cp311", "cp313", "cp314")
+DISTRIBUTIONS = ("embreex", "openexr")
+
+
+def _load_build_extension():
+    spec = importlib.util.spec_from_file_location("build_extension", os.path.join(TOOLS, "build_extension.py"))
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
+
+
+build_extension = _load_build_extension()
+
+
+def wheel_tags(path):
+    """(distribution, python tag, abi tag, Blender platform) of a wheel file name."""
+    parts = os.path.basename(path)[:-len(".whl")].split("-")
+    platform_tag = parts[-1]
+    if platform_tag.startswith("manylinux") and platform_tag.endswith("_x86_64"):
+        platform = "linux-x64"
+    elif platform_tag.startswith("macosx_") and platform_tag.endswith("_arm64"):
+        platform = "macos-arm64"
+    elif platform_tag.startswith("macosx_") and platform_tag.endswith("_x86_64"):
+        platform = "macos-x64"
+    elif platform_tag == "win_amd64":
+        platform = "windows-x64"
+    else:
+        platform = platform_tag
+    return parts[0].lower(), parts[-3], parts[-2], platform
+
+
+def sha256_of(path):
+    digest = hashlib.sha256()
+    with open(path, "rb") as fh:
+        for chunk in iter(lambda: fh.read(1 << 20), b""):
+            digest.update(chunk)
+    return digest.hexdigest()
 
 
 def run(cmd, timeout=600, env=None, cwd=REPO_ROOT):
@@ -39,19 +88,31 @@ def blender_env(user_resources):
 
 
 @pytest.fixture(scope="module")
-def built_zip(tmp_path_factory):
-    """Build the package into a temporary folder (wheels are fetched into wheels/)."""
+def built(tmp_path_factory):
+    """Build the packages into a temporary folder (wheels are fetched into
+    wheels/): {platform: its package, "host": this machine's package}."""
     out_dir = tmp_path_factory.mktemp("dist")
     stdout = run([sys.executable, os.path.join(TOOLS, "build_extension.py"),
                   "--output-dir", str(out_dir)])
     zip_path = stdout.strip().splitlines()[-1]
     assert zip_path == str(out_dir / "{}-{}.zip".format(PKG_ID, MANIFEST["version"]))
     assert os.path.isfile(zip_path)
-    return zip_path
+    packages = {"host": zip_path}
+    for platform in PLATFORMS:
+        packages[platform] = str(out_dir / "{}-{}-{}.zip".format(
+            PKG_ID, MANIFEST["version"], platform.replace("-", "_")))
+        assert os.path.isfile(packages[platform]), stdout
+    assert sorted(os.listdir(out_dir)) == sorted(os.path.basename(p) for p in packages.values())
+    return packages
+
+
+@pytest.fixture(scope="module")
+def built_zip(built):
+    """The package of this machine, as tools/render.py and the farm install it."""
+    return built["host"]
 
 
 def find_blender_ext():
-    import importlib.util
     spec = importlib.util.find_spec("bpy")
     found = []
     for location in spec.submodule_search_locations:
@@ -67,13 +128,66 @@ def test_manifest_fields():
     assert MANIFEST["type"] == "add-on"
     assert MANIFEST["blender_version_min"] == "4.2.0"
     assert not MANIFEST["tagline"].endswith((".", "!", "?", ",", ";", ":"))
+    assert tuple(MANIFEST["platforms"]) == PLATFORMS
     for wheel in MANIFEST["wheels"]:
         assert wheel.startswith("./wheels/") and wheel.endswith(".whl")
-        assert "-cp311-cp311-" in wheel
 
 
-def test_package_validates(built_zip):
-    stdout = run([sys.executable, find_blender_ext(), "validate", built_zip])
+def test_manifest_lists_every_platform_and_python_once():
+    """One wheel of each distribution per platform and Python, and no other."""
+    tags = [wheel_tags(w) for w in MANIFEST["wheels"]]
+    assert len(set(MANIFEST["wheels"])) == len(MANIFEST["wheels"])
+    for dist, python, abi, platform in tags:
+        assert python == abi, (dist, python, abi)      # CPython's own ABI, no abi3, no free-threaded
+    assert sorted((d, py, p) for d, py, _, p in tags) == sorted(
+        (d, py, p) for d in DISTRIBUTIONS for py in PYTHONS for p in PLATFORMS)
+    versions = {os.path.basename(w).split("-")[1] for w in MANIFEST["wheels"]
+                if os.path.basename(w).startswith("embreex-")}
+    assert versions == {"4.4.0.post1"}
+    versions = {os.path.basename(w).split("-")[1] for w in MANIFEST["wheels"]
+                if os.path.basename(w).lower().startswith("openexr-")}
+    assert versions == {"3.5.3"}
+
+
+def test_every_wheel_exists_and_matches_its_hash(built):
+    """The build fetched every wheel of the manifest, each with the SHA-256
+    PyPI publishes for it (tools/build_extension.py, WHEEL_SHA256)."""
+    names = {os.path.basename(w) for w in MANIFEST["wheels"]}
+    assert set(build_extension.WHEEL_SHA256) == names
+    for wheel in MANIFEST["wheels"]:
+        path = os.path.join(REPO_ROOT, wheel)
+        assert os.path.isfile(path), wheel
+        assert sha256_of(path) == build_extension.WHEEL_SHA256[os.path.basename(wheel)], wheel
+
+
+@pytest.mark.parametrize("platform", PLATFORMS)
+def test_platform_package_holds_its_own_wheels_only(built, platform):
+    with zipfile.ZipFile(built[platform]) as zf:
+        names = zf.namelist()
+        manifest = tomllib.loads(zf.read("blender_manifest.toml").decode())
+    wheels = sorted(n for n in names if n.startswith("wheels/"))
+    expected = sorted(w[len("./"):] for w in MANIFEST["wheels"] if wheel_tags(w)[3] == platform)
+    assert wheels == expected
+    assert sorted((d, py) for d, py, _, p in map(wheel_tags, wheels)) == sorted(
+        (d, py) for d in DISTRIBUTIONS for py in PYTHONS)
+    assert {wheel_tags(w)[3] for w in wheels} == {platform}
+    # The builder declares the package's platform (what Blender and the
+    # extensions site read) and its wheels.
+    generated = manifest["build"]["generated"]
+    assert generated["platforms"] == [platform]
+    assert sorted(w[len("./"):] for w in generated["wheels"]) == expected
+
+
+def test_host_package_is_this_machines_platform_package(built):
+    host = build_extension.host_platform()
+    assert host in PLATFORMS, host
+    with open(built["host"], "rb") as a, open(built[host], "rb") as b:
+        assert a.read() == b.read()
+
+
+@pytest.mark.parametrize("platform", PLATFORMS)
+def test_package_validates(built, platform):
+    stdout = run([sys.executable, find_blender_ext(), "validate", built[platform]])
     assert "Success" in stdout
 
 
@@ -86,13 +200,11 @@ def test_package_contents(built_zip):
     assert "__init__.py" in names
     assert "restir_addon/__init__.py" in names
     assert any(n.startswith("core/") and n.endswith(".py") for n in names)
-    for wheel in MANIFEST["wheels"]:
-        assert wheel[len("./"):] in names, wheel
-    assert len([n for n in names if n.startswith("wheels/")]) == len(MANIFEST["wheels"])
 
-    for excluded in ("tests", "example_blends", "bench", "docs", "tools", "out", "build",
-                     "dist", ".venv", ".git", ".gitignore", ".ci", ".blender_user",
-                     "Makefile", "requirements.txt"):
+    for excluded in ("tests", "example_blends", "bench", "docs", "tools", "farm", "out", "build",
+                     "dist", ".venv", ".venv-py311", ".git", ".gitignore", ".ci",
+                     ".blender_user", ".blender_user-py311", "Makefile", "requirements.txt",
+                     "requirements-py311.txt"):
         assert excluded not in tops, excluded
     assert not [n for n in names if "__pycache__" in n or n.endswith((".pyc", ".blend", ".blend1"))]
 
