@@ -11,13 +11,19 @@ the engine's chunk warm-up.
 - A render process killed during a chunk: the chunk is retried and only its
   missing frames are rendered; nothing is truncated or written twice.
 - Bad input: a clear message, exit status 2, nothing written.
+- A configuration error (no package built yet, a package for another
+  platform or Python, a workers' Python without bpy, ...) fails once, before
+  any task is submitted, saying what to do; a chunk whose render refuses its
+  configuration on a worker stops the farm instead of being retried.
 
 The example animation (example_blends/room_animated.blend) is rendered at
 30 % of its resolution and over 18 frames to keep the suite short.
 """
 
 import os
+import platform
 import re
+import shutil
 import subprocess
 import sys
 import textwrap
@@ -189,6 +195,116 @@ def test_bad_input_is_refused_and_writes_nothing(tmp_path, case):
                "chunk 0": "--chunk must be at least 1", "no scheduler": "cannot reach"}[case]
     assert "error" in proc.stdout and message in proc.stdout, proc.stdout
     assert not out.exists()
+
+
+def _fake_package(path, platforms, python_tag):
+    """A zip with only a manifest, as a split package of the given platforms
+    with wheels of one Python (what tools/farm.py reads of a package)."""
+    import zipfile
+    wheels = ", ".join(f'"./wheels/embreex-4.4.0.post1-{python_tag}-{python_tag}-{tag}.whl"'
+                       for tag in ("manylinux_2_28_x86_64", "win_amd64"))
+    manifest = (f'schema_version = "1.0.0"\nid = "restir_gi"\nversion = "0.1.0"\n'
+                f'platforms = {platforms!r}\nwheels = [{wheels}]\n'.replace("'", '"'))
+    with zipfile.ZipFile(path, "w") as zf:
+        zf.writestr("blender_manifest.toml", manifest)
+    return path
+
+
+def _this_platform():
+    system = {"linux": "linux", "darwin": "macos", "win32": "windows"}.get(sys.platform, sys.platform)
+    machine = platform.machine().lower()
+    return f"{system}-{ {'x86_64': 'x64', 'amd64': 'x64', 'aarch64': 'arm64'}.get(machine, machine)}"
+
+
+def _repo_copy(tmp_path):
+    """The workers' repository as a fresh clone has it before `make build`:
+    tools and manifest, no dist/."""
+    repo = tmp_path / "repo"
+    shutil.copytree(TOOLS, repo / "tools", ignore=shutil.ignore_patterns("__pycache__"))
+    shutil.copy(os.path.join(REPO_ROOT, "blender_manifest.toml"), repo)
+    return repo
+
+
+HERE_PY = "cp{}{}".format(*sys.version_info[:2])
+OTHER_PY = "cp313" if HERE_PY == "cp311" else "cp311"
+OTHER_PLATFORM = "windows-x64" if _this_platform() != "windows-x64" else "linux-x64"
+
+
+@pytest.mark.parametrize("case", ["no package built", "not a package", "package for another python",
+                                  "package for another platform", "python without bpy",
+                                  "no repository", "output is a file"])
+def test_configuration_errors_fail_once_before_any_task(tmp_path, case):
+    """Started before `make build` the farm used to submit every chunk, each
+    failing 'extension package not found' until its retries ran out. Now
+    every configuration error is found before a task is submitted (no
+    cluster is started), and the message says what to do."""
+    out = tmp_path / "out"
+    repo = _repo_copy(tmp_path)
+    good = _fake_package(tmp_path / "good.zip", [_this_platform()], HERE_PY)
+    extra = {
+        "no package built": [],
+        "not a package": ["--package", str(tmp_path / "README.md")],
+        "package for another python": ["--package", str(_fake_package(
+            tmp_path / "other_py.zip", [_this_platform()], OTHER_PY))],
+        "package for another platform": ["--package", str(_fake_package(
+            tmp_path / "other_platform.zip", [OTHER_PLATFORM], HERE_PY))],
+        "python without bpy": ["--package", str(good), "--worker-python", str(tmp_path / "python")],
+        "no repository": ["--package", str(good)],
+        "output is a file": ["--package", str(good)],
+    }[case]
+    (tmp_path / "README.md").write_text("not a zip")
+    # A Python that runs but finds no bpy (-S: no site-packages).
+    (tmp_path / "python").write_text(f'#!/bin/sh\nexec "{sys.executable}" -S "$@"\n')
+    (tmp_path / "python").chmod(0o755)
+    if case == "no repository":
+        shutil.rmtree(repo / "tools")
+    if case == "output is a file":
+        out.write_text("")
+    t0 = time.perf_counter()
+    proc = run([sys.executable, os.path.join(TOOLS, "farm.py"), EXAMPLE, "--frames", "1-4",
+                "--chunk", "2", "--out", str(out), "--worker-repo", str(repo), "--retries", "3", *extra],
+               timeout=300)
+    seconds = time.perf_counter() - t0
+    print(proc.stdout)
+    assert proc.returncode == 2, proc.stdout
+    message = {
+        "no package built": ["extension package not found", "make build"],
+        "not a package": ["is not an extension package", "make build"],
+        "package for another python": ["no wheels for Python {}.{}".format(*sys.version_info[:2]),
+                                       "make build"],
+        "package for another platform": [f"package for {OTHER_PLATFORM}", "not for this machine"],
+        "python without bpy": ["has no bpy module", "make venv", "--worker-python"],
+        "no repository": ["tools/render.py not found", "--worker-repo"],
+        "output is a file": ["is a file, not a folder"],
+    }[case]
+    assert "error: configuration" in proc.stdout, proc.stdout
+    for words in message:
+        assert words in proc.stdout, (words, proc.stdout)
+    # Once: no cluster, no chunk, no retry; nothing written.
+    assert "chunks of up to" not in proc.stdout and "retry" not in proc.stdout, proc.stdout
+    assert case == "output is a file" or not out.exists()
+    assert seconds < 60, seconds
+
+
+def test_a_chunk_refusing_its_configuration_is_not_retried(tmp_path):
+    """A worker's render that exits with status 2 (render.py: bad arguments
+    or a missing file, e.g. the package gone from a worker) stops the farm at
+    once: retrying cannot mend it."""
+    repo = _repo_copy(tmp_path)
+    (repo / "tools" / "render.py").write_text(
+        "import sys\nprint('[render] error: extension package not found: x.zip "
+        "(build it with `make build`)', file=sys.stderr)\nsys.exit(2)\n")
+    package = _fake_package(tmp_path / "good.zip", [_this_platform()], HERE_PY)
+    out = tmp_path / "out"
+    proc = run([sys.executable, os.path.join(TOOLS, "farm.py"), EXAMPLE, "--frames", "1-8",
+                "--chunk", "2", "--out", str(out), "--workers", "2", "--retries", "3",
+                "--worker-repo", str(repo), "--package", str(package)], timeout=300)
+    print(proc.stdout)
+    assert proc.returncode == 2, proc.stdout
+    assert "stopped without retrying" in proc.stdout and "make build" in proc.stdout, proc.stdout
+    assert "retry" not in proc.stdout.replace("without retrying", ""), proc.stdout
+    # At most one failed attempt per worker (those already running), not 4 chunks x 4 tries.
+    assert 1 <= proc.stdout.count(" failed: frames ") <= 2, proc.stdout
 
 
 def test_frame_ranges():

@@ -21,8 +21,15 @@ its missing frames. A chunk whose render fails (its process dies, or Blender
 reports an error) is retried, up to R times, preferably on another worker.
 Progress (frames in DIR out of the range, seconds per frame, time left) is
 printed while it runs, and a summary at the end. Exit status: 0 when every
-frame of the range is in DIR, 1 when some are missing, 2 on bad arguments or
-an unreachable scheduler (nothing written then).
+frame of the range is in DIR, 1 when some are missing, 2 on bad arguments, an
+unreachable scheduler or a configuration error (nothing written then).
+
+Configuration is checked once, before any chunk is submitted: the .blend, the
+extension package (built for this platform and the workers' Python), the
+workers' Python (with bpy) and repository, the output folder. On a cluster
+every worker checks its own. A problem stops the farm at once with what to do
+about it; so does a chunk whose render refuses its configuration (render.py's
+exit status 2), instead of being retried.
 
 Cluster workers need this repository (at the same path, or --worker-repo) and
 its Python environment (``make venv``; --worker-python), with the extension
@@ -34,11 +41,14 @@ from __future__ import annotations
 
 import argparse
 import os
+import platform
 import re
 import subprocess
 import sys
 import threading
 import time
+import tomllib
+import zipfile
 from dataclasses import dataclass, field
 
 from frame_range import chunks, parse_range
@@ -86,7 +96,8 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     p.add_argument("--worker-repo", default=REPO_ROOT,
                    help="this repository's path on the workers (default: the same as here)")
     p.add_argument("--package", default=None, metavar="ZIP",
-                   help="extension package the renders install (default: render.py's, dist/)")
+                   help="extension package the renders install (default: render.py's, "
+                        "dist/<id>-<version>.zip in the workers' repository)")
     p.add_argument("--user-resources", default=None, metavar="DIR",
                    help="Blender user folder the renders use (default: render.py's, .blender_user/)")
     args = p.parse_args(argv)
@@ -108,6 +119,125 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     return args
 
 
+def this_platform() -> str:
+    """This machine as a Blender platform name: linux-x64, macos-arm64, windows-x64, ..."""
+    system = {"linux": "linux", "darwin": "macos", "win32": "windows"}.get(sys.platform, sys.platform)
+    machine = platform.machine().lower()
+    return "{}-{}".format(system, {"x86_64": "x64", "amd64": "x64", "aarch64": "arm64"}.get(machine, machine))
+
+
+def default_package(repo: str) -> str | None:
+    """render.py's default package in a repository: dist/<id>-<version>.zip."""
+    try:
+        with open(os.path.join(repo, "blender_manifest.toml"), "rb") as fh:
+            manifest = tomllib.load(fh)
+        return os.path.join(repo, "dist", "{}-{}.zip".format(manifest["id"], manifest["version"]))
+    except (OSError, KeyError, tomllib.TOMLDecodeError):
+        return None
+
+
+def package_problem(package: str, python_version: str | None) -> str | None:
+    """What keeps Blender here (this platform, Python python_version) from
+    installing the package, or None."""
+    try:
+        with zipfile.ZipFile(package) as zf:
+            manifest = tomllib.loads(zf.read("blender_manifest.toml").decode("utf-8"))
+    except (OSError, KeyError, zipfile.BadZipFile, UnicodeDecodeError, tomllib.TOMLDecodeError) as exc:
+        return (f"{package} is not an extension package ({type(exc).__name__}: {exc}): "
+                f"rebuild it with `make build`")
+    generated = manifest.get("build", {}).get("generated", {})
+    platforms = generated.get("platforms", manifest.get("platforms"))
+    here = this_platform()
+    if platforms and here not in platforms:
+        return (f"{package} is the package for {', '.join(platforms)}, not for this machine ({here}): "
+                f"give the {here.replace('-', '_')} package, or build this machine's with `make build`")
+    wheels = generated.get("wheels", manifest.get("wheels")) or []
+    tags = {os.path.basename(w).split("-")[-3] for w in wheels if w.endswith(".whl")}
+    if python_version and tags:
+        want = "cp" + python_version.replace(".", "")
+        if want not in tags:
+            have = ", ".join(f"{t[2]}.{t[3:]}" for t in sorted(tags) if t.startswith("cp"))
+            return (f"{package} has no wheels for Python {python_version} (only {have}): "
+                    f"rebuild it with `make build` from this version of the repository")
+    return None
+
+
+def writable_problem(path: str, what: str) -> str | None:
+    """Whether path can be made and written into (nothing is created here)."""
+    if os.path.exists(path) and not os.path.isdir(path):
+        return f"{what} {path} is a file, not a folder: give a folder"
+    probe = path
+    while not os.path.exists(probe):
+        parent = os.path.dirname(probe)
+        if parent == probe:
+            break
+        probe = parent
+    if not os.access(probe, os.W_OK | os.X_OK):
+        return f"{what} {path} cannot be written ({probe} is not writable): give a writable folder"
+    return None
+
+
+def setup_problems(blend: str, out: str, repo: str, python: str, package: str | None,
+                   user_resources: str | None) -> list[str]:
+    """Configuration errors of the machine this runs on, each with what to do:
+    what every chunk's render would fail on. Standard library only (it runs on
+    the workers of a cluster too)."""
+    problems = []
+    if not os.path.isfile(blend):
+        problems.append(f"blend file not found: {blend} (it must be at the same path on every worker)")
+    if not os.path.isfile(os.path.join(repo, "tools", "render.py")):
+        problems.append(f"tools/render.py not found in {repo}: give this repository's path on the "
+                        f"workers with --worker-repo")
+    python_version = None
+    try:
+        proc = subprocess.run([python, "-c", "import importlib.util, sys; print('%d.%d' % "
+                               "sys.version_info[:2], importlib.util.find_spec('bpy') is not None)"],
+                              stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, timeout=120)
+        output = proc.stdout.split()
+        if proc.returncode != 0 or len(output) != 2:
+            problems.append(f"the workers' Python {python} does not run (exit status {proc.returncode}): "
+                            f"give one with --worker-python")
+        elif output[1] != "True":
+            problems.append(f"the workers' Python {python} has no bpy module: run `make venv` and give "
+                            f"its .venv/bin/python with --worker-python")
+        else:
+            python_version = output[0]
+    except (OSError, subprocess.TimeoutExpired) as exc:
+        problems.append(f"the workers' Python {python} cannot be started ({exc}): give one with "
+                        f"--worker-python")
+    if package is None:
+        package = default_package(repo)
+    if package is None:
+        problems.append(f"no blender_manifest.toml in {repo}: give the repository with --worker-repo "
+                        f"or the package with --package ZIP")
+    elif not os.path.isfile(package):
+        problems.append(f"extension package not found: {package}: build it with `make build`, or "
+                        f"give one with --package ZIP")
+    elif (problem := package_problem(package, python_version)) is not None:
+        problems.append(problem)
+    for path, what in ((out, "output folder"), (user_resources, "Blender user folder")):
+        if path is not None and (problem := writable_problem(path, what)) is not None:
+            problems.append(problem)
+    return problems
+
+
+def check_setup(args, client=None) -> None:
+    """Stops the farm with every configuration problem, before any task is
+    submitted: checked here (a LocalCluster's workers are this machine), or
+    by each worker of a cluster (client)."""
+    package = os.path.abspath(args.package) if args.package is not None else None
+    user = os.path.abspath(args.user_resources) if args.user_resources is not None else None
+    call = (args.blend, args.out, args.worker_repo, args.worker_python, package, user)
+    if client is None:
+        found = {"": setup_problems(*call)}
+    else:
+        found = client.run(setup_problems, *call)
+    lines = [(f"{worker}: " if worker else "") + problem
+             for worker, problems in sorted(found.items()) for problem in problems]
+    if lines:
+        fail("configuration (nothing was rendered):\n  " + "\n  ".join(lines))
+
+
 def frame_files(out: str, frame: int) -> list[str]:
     return [os.path.join(out, f"frame_{frame:04d}.{ext}") for ext in ("exr", "png")]
 
@@ -120,9 +250,12 @@ class ChunkFailed(RuntimeError):
     """A chunk's render exited with an error: which worker, which frames it
     wrote before that, and the end of its output."""
 
-    def __init__(self, worker: str, written: list[int], message: str):
-        super().__init__(worker, written, message)
+    def __init__(self, worker: str, written: list[int], message: str, config: bool = False):
+        super().__init__(worker, written, message, config)
         self.worker, self.written, self.message = worker, written, message
+        # render.py's exit status 2: bad arguments or missing files, which a
+        # retry does not mend.
+        self.config = config
 
     def __str__(self):
         return self.message
@@ -156,7 +289,7 @@ def render_chunk(python: str, repo: str, blend: str, first: int, last: int, out:
         how = (f"killed by signal {-proc.returncode}" if proc.returncode < 0
                else f"exit status {proc.returncode}")
         raise ChunkFailed(worker, sorted(written), f"frames {first}-{last} on {worker}: render {how}"
-                          + (": " + " | ".join(tail) if tail else ""))
+                          + (": " + " | ".join(tail) if tail else ""), config=proc.returncode == 2)
     return worker, written, time.perf_counter() - t0
 
 
@@ -167,6 +300,7 @@ class Summary:
     written: list = field(default_factory=list)     # frame numbers, every attempt
     retries: int = 0
     failures: list = field(default_factory=list)    # messages of failed attempts
+    config_error: str = ""            # a chunk refused its configuration: the farm stopped
     seconds: float = 0.0
 
 
@@ -218,13 +352,22 @@ def run(args) -> Summary:
         log(f"all {len(frames)} frames are already in {args.out}")
         return summary
 
+    if args.scheduler is None:
+        check_setup(args)
     client, cluster = connect(args)
+    if cluster is None:
+        try:
+            check_setup(args, client)
+        except SystemExit:
+            client.close()
+            raise
     os.makedirs(args.out, exist_ok=True)
     options = render_options(args)
     workers = sorted(client.scheduler_info()["workers"])
     log(f"{len(frames)} frames ({summary.skipped} already done) in {len(todo)} chunks of up to "
         f"{args.chunk} on {len(workers)} workers; output {args.out}")
     attempts = {}
+    live = {}
     t0 = time.perf_counter()
 
     def submit(chunk, avoid=None):
@@ -233,6 +376,7 @@ def run(args) -> Summary:
                             chunk[0], chunk[1], args.out, options, pure=False,
                             workers=others or None, allow_other_workers=True)
         attempts[fut.key] = chunk
+        live[fut.key] = fut
         return fut
 
     tries = {c: 0 for c in todo}
@@ -248,6 +392,7 @@ def run(args) -> Summary:
     try:
         for fut in pending:
             chunk = attempts.pop(fut.key)
+            live.pop(fut.key, None)
             try:
                 worker, written, seconds = fut.result()
                 summary.written += sorted(written)
@@ -260,6 +405,11 @@ def run(args) -> Summary:
                 summary.written += getattr(exc, "written", [])
                 summary.failures.append(str(exc) or type(exc).__name__)
                 log(f"chunk {chunk[0]}-{chunk[1]} failed: {summary.failures[-1]}")
+                if getattr(exc, "config", False):
+                    # The same on every try: stop, and say so once.
+                    summary.config_error = summary.failures[-1]
+                    client.cancel(list(live.values()))
+                    break
                 if tries[chunk] < args.retries:
                     tries[chunk] += 1
                     summary.retries += 1
@@ -296,6 +446,9 @@ def main(argv: list[str] | None = None) -> int:
         f"{summary.retries} retries, {len(summary.failures)} failed attempts")
     for msg in summary.failures:
         log("  failure: " + msg)
+    if summary.config_error:
+        fail("a render refused its configuration, so the farm stopped without retrying: "
+             + summary.config_error)
     if missing:
         log(f"missing frames: {', '.join(map(str, missing))}")
         return 1
