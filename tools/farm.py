@@ -198,8 +198,9 @@ def setup_problems(blend: str, out: str, repo: str, python: str, package: str | 
             problems.append(f"the workers' Python {python} does not run (exit status {proc.returncode}): "
                             f"give one with --worker-python")
         elif output[1] != "True":
-            problems.append(f"the workers' Python {python} has no bpy module: run `make venv` and give "
-                            f"its .venv/bin/python with --worker-python")
+            problems.append(f"the workers' Python {python} has no bpy module: give the Python of the "
+                            f"environment `make venv` makes (.venv/bin/python; .venv-py311/bin/python "
+                            f"with LINE=py311) with --worker-python")
         else:
             python_version = output[0]
     except (OSError, subprocess.TimeoutExpired) as exc:
