@@ -180,7 +180,7 @@ def lobe_params(diffuse, f0, roughness, f90=None, glass=None):
     total = ws + wd + wg
     safe = np.where(total > 0, total, 1)
     p_spec = np.where(total > 0, ws / safe, 0.0)
-    p_spec = np.where((ws > 0) & (wd > 0) & ~(wg > 0), np.clip(p_spec, 0.1, 0.9), p_spec)
+    p_spec = np.where((ws > 0) & (wd > 0) & ~np.greater(wg, 0), np.clip(p_spec, 0.1, 0.9), p_spec)
     alpha = np.maximum(np.asarray(roughness) ** 2, ALPHA_MIN)
     p = BSDFParams(np.ascontiguousarray(diffuse, np.float32), np.ascontiguousarray(f0, np.float32),
                    np.ascontiguousarray(alpha, np.float32), np.ascontiguousarray(p_spec, np.float32),

@@ -249,13 +249,13 @@ class LightSet:
         near = u_select < self._p_local
         rows = np.nonzero(near)[0]
         if len(rows):
-            light, q = self.grid.sample(gather(p, rows), u_select[rows] / np.float64(self._p_local),
+            light, q = self.grid.sample(gather(p, rows), u_select[rows].astype(np.float64) / self._p_local,
                                         None if n is None else gather(n, rows))
             idx[rows] = self._local_ids[light]
             pmf[rows] = self._p_local * q
         rows = np.nonzero(~near)[0]
         if len(rows):
-            u = (u_select[rows] - np.float64(self._p_local)) / (1.0 - self._p_local)
+            u = (u_select[rows].astype(np.float64) - self._p_local) / (1.0 - self._p_local)
             far = np.clip(self._far.locate(u) - 1, 0, self._far.count - 1)
             idx[rows] = self._far_ids[far]
             pmf[rows] = np.take(self.distribution.pmf, idx[rows])

@@ -227,3 +227,15 @@ def test10_batch_equals_one_at_a_time(rng):
         assert np.allclose(w1, s_wi[one], atol=1e-6)
         assert np.allclose(f1, s_f[one], rtol=1e-5, atol=1e-7)
         assert np.allclose(p1, s_pdf[one], rtol=1e-5, atol=1e-7)
+
+
+def test11_lobe_params_without_glass_warn_nothing():
+    """Diffuse and specular alone (no glass lobe, whose weight is then the
+    Python float 0): no warning, on Python 3.13 either, where inverting a
+    Python bool with '~' is deprecated."""
+    import warnings
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        p = bsdf.lobe_params(np.full((2, 3), 0.5, np.float32), np.full((2, 3), 0.04, np.float32),
+                             np.float32([0.3, 0.7]))
+    assert np.all((p.p_spec >= 0.1) & (p.p_spec <= 0.9))
