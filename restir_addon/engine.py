@@ -32,6 +32,10 @@ class RestirGIRenderEngine(bpy.types.RenderEngine):
 
 def register():
     bpy.utils.register_class(RestirGIRenderEngine)
+    # Removes the temporary images kept while rendering (export/images.py),
+    # from the main thread: a render thread must not register timers.
+    if not bpy.app.timers.is_registered(images.sweep):
+        bpy.app.timers.register(images.sweep, first_interval=images.SWEEP_INTERVAL, persistent=True)
 
 
 def unregister():

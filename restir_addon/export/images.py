@@ -34,8 +34,8 @@ every node using the image shares the one ImageSet. What Blender hands over
   UI): removing a datablock then makes Blender 5.2 crash in the depsgraph
   update of the next frame of an animation with Persistent Data. They are
   kept, their pixels freed, until ``sweep()`` removes them once no render
-  runs (a timer in the UI, or the next read outside a render). The user's
-  images are never modified.
+  runs (a timer of the engine in the UI, or the next read outside a render).
+  The user's images are never modified.
 """
 
 import os
@@ -56,7 +56,8 @@ NONE_KEY = "<no image>"
 TEMPORARY = ".restir_gi temporary"
 
 _renders = 0            # final renders running in this process (rendering())
-SWEEP_INTERVAL = 1.0    # seconds between the timer's tries while a render runs
+_kept = False           # temporary images wait for sweep()
+SWEEP_INTERVAL = 2.0    # seconds between the engine's timer calls of sweep()
 
 
 @contextmanager
@@ -85,25 +86,28 @@ def _temporaries():
 
 
 def sweep():
-    """Remove the temporary images kept during renders once none runs. A
-    bpy.app.timers function: returns the seconds to the next try, or None."""
-    import bpy
-    if not _removal_safe():
-        return SWEEP_INTERVAL
-    for im in _temporaries():
-        bpy.data.images.remove(im)
-    return None
+    """Remove the temporary images kept during renders, once none runs. The
+    engine runs it from a timer on the UI's main thread (never from a render
+    thread), and reads outside renders run it first. Returns the timer's
+    next interval."""
+    global _kept
+    if _kept and _removal_safe():
+        import bpy
+        _kept = False
+        for im in _temporaries():
+            bpy.data.images.remove(im)
+    return SWEEP_INTERVAL
 
 
 def _discard(image):
     """Remove a temporary image now, or keep it (pixels freed) for sweep()."""
-    import bpy
+    global _kept
     if _removal_safe():
+        import bpy
         bpy.data.images.remove(image)
         return
     image.buffers_free()
-    if not bpy.app.timers.is_registered(sweep):
-        bpy.app.timers.register(sweep, first_interval=SWEEP_INTERVAL, persistent=True)
+    _kept = True
 
 
 def shrink(pixels, width, height):
@@ -199,8 +203,7 @@ class ImageCache:
             frame = sequence_frame(image_user, scene_frame) if image_user is not None else 1
             key = f"{key}@{frame}"
         if key not in self._sets:
-            if _removal_safe():
-                sweep()
+            sweep()
             self._sets[key] = self._read(image, frame)
         return key
 
