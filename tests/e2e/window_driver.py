@@ -1,0 +1,129 @@
+"""Driver run inside a real Blender window by tests/e2e/test_real_window.py
+(tools/real_blender.py): what a user does on first use of the engine.
+
+At start (Solid shading) it lists the engines the Render Engine dropdown
+offers and picks ReSTIR GI, with the Properties editor on the Render tab;
+REAL_RENDERED seconds after start it switches every 3D view to Rendered
+through the camera, overlays off; at REAL_F12 seconds it renders F12 and
+writes the image; then it opens the Preferences on Add-ons, renders a few
+animation frames headless with ``blender -b FILE -E RESTIR_GI -a`` and
+quits. It takes its own screenshots of the window (solid.png, rendered.png
+just before F12, preferences.png) into REAL_OUT. Every step prints a line
+starting with DRIVER, read back from blender.log."""
+
+import os
+import subprocess
+import sys
+import time
+import traceback
+
+import bpy
+
+T0 = time.time()
+OUT = os.environ.get("REAL_OUT", ".")
+RENDERED_AT = float(os.environ.get("REAL_RENDERED", "4"))
+F12_AT = float(os.environ.get("REAL_F12", "14"))
+ENGINE = "RESTIR_GI"
+
+
+def say(key, *values):
+    """A line ``DRIVER <seconds> <key>: <values>`` for the test to read."""
+    print("DRIVER", f"{time.time() - T0:.2f}", f"{key}:", *values, flush=True)
+
+
+def step(fn):
+    """A timer callback that reports its own failure and quits, never hangs."""
+    def run():
+        try:
+            return fn()
+        except Exception:
+            traceback.print_exc()
+            say("failed", fn.__name__)
+            bpy.ops.wm.quit_blender()
+    return run
+
+
+def areas(kind):
+    for window in bpy.context.window_manager.windows:
+        for area in window.screen.areas:
+            if area.type == kind:
+                yield window, area
+
+
+def screenshot(name):
+    """The whole screen as the user sees it, into OUT/name (ImageMagick's
+    import: Blender's own screenshot operator reads back black under
+    software OpenGL)."""
+    subprocess.run(["import", "-window", "root", os.path.join(OUT, name)], check=True, timeout=30)
+    say("screenshot", name)
+
+
+@step
+def pick_engine():
+    scene = bpy.context.scene
+    screenshot("solid.png")
+    # The dropdown lists Blender's own engines and every registered RenderEngine.
+    items = [getattr(cls, "bl_idname", cls.__name__) for cls in bpy.types.RenderEngine.__subclasses__()]
+    say("dropdown", ",".join(items))
+    scene.render.engine = ENGINE
+    for _, area in areas("PROPERTIES"):
+        area.spaces.active.context = "RENDER"
+    say("engine", scene.render.engine)
+    for window, area in areas("VIEW_3D"):
+        say("area", area.x, area.y, area.width, area.height, window.height)
+
+
+@step
+def rendered_viewport():
+    for _, area in areas("VIEW_3D"):
+        space = area.spaces.active
+        space.shading.type = "RENDERED"
+        space.region_3d.view_perspective = "CAMERA"
+        space.overlay.show_overlays = False
+    say("viewport", "rendered")
+
+
+@step
+def f12():
+    scene = bpy.context.scene
+    screenshot("rendered.png")
+    scene.render.filepath = os.path.join(OUT, "f12.png")
+    scene.render.image_settings.file_format = "PNG"
+    for _, area in areas("VIEW_3D"):
+        area.spaces.active.shading.type = "SOLID"     # the viewport's frames stop
+    window = bpy.context.window_manager.windows[0]
+    t = time.time()
+    with bpy.context.temp_override(window=window):
+        bpy.ops.render.render(write_still=True)
+    say("f12", f"{time.time() - t:.2f}", os.path.isfile(scene.render.filepath))
+    bpy.app.timers.register(preferences, first_interval=0.5)
+
+
+@step
+def preferences():
+    ours = [name for name in bpy.context.preferences.addons.keys() if name.endswith(".restir_gi")]
+    say("addon", ",".join(ours) or "missing")
+    bpy.ops.screen.userpref_show(section="ADDONS")
+    bpy.app.timers.register(step(lambda: screenshot("preferences.png")), first_interval=2.0)
+    bpy.app.timers.register(batch, first_interval=3.0)
+
+
+@step
+def batch():
+    blend = bpy.data.filepath
+    pattern = os.path.join(OUT, "anim_####")
+    t = time.time()
+    proc = subprocess.run([bpy.app.binary_path, "-b", blend, "-E", ENGINE, "-o", pattern, "-F", "PNG",
+                           "-s", "1", "-e", "3", "-a"], capture_output=True, text=True, timeout=240)
+    with open(os.path.join(OUT, "batch.log"), "w") as fh:
+        fh.write(proc.stdout + proc.stderr)
+    frames = sorted(f for f in os.listdir(OUT) if f.startswith("anim_"))
+    say("batch", proc.returncode, f"{time.time() - t:.2f}", ",".join(frames))
+    say("quitting", "")
+    bpy.ops.wm.quit_blender()
+
+
+say("versions", sys.version.split()[0], bpy.app.version_string)
+bpy.app.timers.register(pick_engine, first_interval=1.5)
+bpy.app.timers.register(rendered_viewport, first_interval=RENDERED_AT)
+bpy.app.timers.register(f12, first_interval=F12_AT)
