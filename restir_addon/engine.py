@@ -10,7 +10,7 @@ from .passes import register_passes
 class RestirGIRenderEngine(bpy.types.RenderEngine):
     bl_idname = "RESTIR_GI"
     bl_label = "ReSTIR GI"
-    bl_use_preview = False
+    bl_use_preview = True
     bl_use_postprocess = True
 
     def render(self, depsgraph):

@@ -43,6 +43,9 @@ UPDATE_INTERVAL = 1.0   # seconds between progressive result updates
 # frame_start (None: warmup_frames, as a first frame; bench/bench_chunks.py).
 CHUNK_FRESH_FRAMES = None
 
+# Material, world and light previews (Properties editor): path-traced samples.
+PREVIEW_SAMPLES = 16
+
 # Seconds spent in each stage of the latest frame (for the benchmarks and the log).
 last_timings = {}
 
@@ -54,9 +57,10 @@ def bounces(scene):
                    getattr(s, "transmission_bounces", None))
 
 
-def path_settings(scene):
+def path_settings(scene, samples=None):
     s = scene.restir_gi
-    return RenderSettings(mode=s.mode, samples=s.samples, max_bounces=bounces(scene), seed=s.seed)
+    return RenderSettings(mode="PATH" if samples else s.mode, samples=samples or s.samples,
+                          max_bounces=bounces(scene), seed=s.seed)
 
 
 def restir_settings(scene):
@@ -113,8 +117,8 @@ def _write(result, images, width, height):
         p.rect.foreach_set(data.ravel())
 
 
-def _render_path(engine, ctx, scene, result, width, height, export_s):
-    settings = path_settings(scene)
+def _render_path(engine, ctx, scene, result, width, height, export_s, samples=None):
+    settings = path_settings(scene, samples)
     last_update = [time.perf_counter()]
 
     def on_sample(f, seconds):
@@ -305,13 +309,32 @@ def view_camera(engine, depsgraph, view, warn):
 def render(engine, depsgraph):
     """A frame: every view of it (one without stereoscopy), each into a
     result of its own; the export's warnings are reported with the first."""
+    if engine.is_preview:
+        _render_preview(engine, depsgraph)
+        return
     for i, view in enumerate(view_names(depsgraph.scene)):
         _render_view(engine, depsgraph, view, report=i == 0)
         if engine.test_break():
             break
 
 
-def _render_view(engine, depsgraph, view, report=True):
+def _render_preview(engine, depsgraph):
+    """A material, world or light preview of the Properties editor: a few
+    path-traced samples, whatever the mode (no warm-up; a preview is small
+    and seen for a moment). Its scene export is its own and freed right
+    after, and it runs on threads only: previews render in a job beside
+    Blender's UI, often several at once, and a twin process is for render
+    loops that own the machine. Unsupported nodes fall back as in renders;
+    their warnings are not reported (the preview has no report to show)."""
+    stream = state.Stream()
+    stream.frame_scene.twin_process = False
+    try:
+        _render_view(engine, depsgraph, None, stream=stream, preview=True)
+    finally:
+        stream.free()
+
+
+def _render_view(engine, depsgraph, view, report=True, stream=None, preview=False):
     scene = depsgraph.scene
     # With a render region Blender's result is the region's size (cropped
     # or not): the region is rendered as an image of its own.
@@ -320,7 +343,8 @@ def _render_view(engine, depsgraph, view, report=True):
     images = None
     try:
         engine.update_stats("", "Exporting scene")
-        stream = state.stream_for(scene.name, depsgraph.view_layer.name, view)
+        if stream is None:
+            stream = state.stream_for(scene.name, depsgraph.view_layer.name, view)
         # A still is never continued (a render continues only an animation's
         # previous frame): its ReSTIR state is let go after its last frame,
         # before the images are copied to Blender, where a still peaks.
@@ -331,7 +355,7 @@ def _render_view(engine, depsgraph, view, report=True):
         has_camera = frame_scene.update(depsgraph, width, height,
                                         view_camera(engine, depsgraph, view, frame_scene.warnings),
                                         camera_only=not report)
-        for text in frame_scene.new_warnings(repeat=not continuing) if report else ():
+        for text in frame_scene.new_warnings(repeat=not continuing) if report and not preview else ():
             engine.report({"WARNING"}, text)
         core_scene, ctx = frame_scene.scene, frame_scene.context
         if not has_camera:
@@ -351,7 +375,9 @@ def _render_view(engine, depsgraph, view, report=True):
         export_s = read_s + apply_s
         trace_before, rays_before = ctx.accel.trace_seconds, ctx.accel.rays_traced
         t1 = time.perf_counter()
-        if scene.restir_gi.mode == "PATH":
+        if preview:
+            images = _render_path(engine, ctx, scene, result, width, height, export_s, PREVIEW_SAMPLES)
+        elif scene.restir_gi.mode == "PATH":
             images = _render_path(engine, ctx, scene, result, width, height, export_s)
         else:
             if engine.is_animation and not _next_frame(engine, stream, scene):

@@ -8,6 +8,7 @@ ENGINE = "RESTIR_GI"
 # world node inputs, light settings, the camera's depth of field), besides every
 # panel open to BLENDER_RENDER.
 EXTRA_PANELS = (
+    "MATERIAL_PT_preview",
     "EEVEE_MATERIAL_PT_context_material",
     "EEVEE_MATERIAL_PT_surface",
     "EEVEE_WORLD_PT_surface",
@@ -106,8 +107,25 @@ class RESTIR_RENDER_PT_light_paths(RestirButtonsPanel, bpy.types.Panel):
         col.prop(s, "transmission_bounces")
 
 
+class RESTIR_WORLD_PT_preview(bpy.types.Panel):
+    """The world's preview (Blender has none of its own; Cycles adds one)."""
+    bl_label = "Preview"
+    bl_space_type = "PROPERTIES"
+    bl_region_type = "WINDOW"
+    bl_context = "world"
+    bl_options = {"DEFAULT_CLOSED"}
+    COMPAT_ENGINES = {ENGINE}
+
+    @classmethod
+    def poll(cls, context):
+        return context.engine in cls.COMPAT_ENGINES and context.world is not None
+
+    def draw(self, context):
+        self.layout.template_preview(context.world)
+
+
 classes = (RESTIR_RENDER_PT_sampling, RESTIR_RENDER_PT_resampling, RESTIR_RENDER_PT_viewport,
-           RESTIR_RENDER_PT_light_paths)
+           RESTIR_RENDER_PT_light_paths, RESTIR_WORLD_PT_preview)
 
 
 def _adopted_panels():

@@ -192,6 +192,7 @@ class FakePass:
 class FakeEngine:
     """The handful of RenderEngine calls the final render makes, recorded."""
     is_animation = False
+    is_preview = False
 
     def __init__(self, names):
         self.pixels, self.log, self.ended = {}, [], False

@@ -112,3 +112,11 @@ def test_headless_animation_render(session):
     assert frames.split(",") == ["anim_0001.png", "anim_0002.png", "anim_0003.png"]
     for name in frames.split(","):
         assert _image(os.path.join(OUT, name))[..., :3].mean() > 0.02
+
+
+def test_material_preview_is_rendered_by_the_engine(session):
+    """The material's preview icon in the Properties editor's slot list
+    holds an image (engines without bl_use_preview leave it empty)."""
+    _, _, lines = session
+    size, mean = lines["preview"][0].split()
+    assert size != "0x0" and float(mean) > 0.02, lines["preview"]

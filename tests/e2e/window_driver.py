@@ -3,6 +3,8 @@
 
 At start (Solid shading) it lists the engines the Render Engine dropdown
 offers and picks ReSTIR GI, with the Properties editor on the Render tab;
+it shows the Material tab of a mesh and reads the material's preview icon
+REAL_PREVIEW_WAIT seconds later (material.png);
 REAL_RENDERED seconds after start it switches every 3D view to Rendered
 through the camera, overlays off; at REAL_F12 seconds it renders F12 and
 writes the image; then it opens the Preferences on Add-ons, renders a few
@@ -23,6 +25,7 @@ T0 = time.time()
 OUT = os.environ.get("REAL_OUT", ".")
 RENDERED_AT = float(os.environ.get("REAL_RENDERED", "4"))
 F12_AT = float(os.environ.get("REAL_F12", "14"))
+PREVIEW_WAIT = float(os.environ.get("REAL_PREVIEW_WAIT", "5"))
 ENGINE = "RESTIR_GI"
 
 
@@ -71,6 +74,38 @@ def pick_engine():
     say("engine", scene.render.engine)
     for window, area in areas("VIEW_3D"):
         say("area", area.x, area.y, area.width, area.height, window.height)
+
+
+@step
+def material_tab():
+    """The Properties editor on the Material tab of a mesh with a material:
+    its slot list shows the material's preview icon, which Blender asks the
+    engine to render (bl_use_preview)."""
+    ob = next(o for o in bpy.context.scene.objects if o.type == "MESH" and o.active_material is not None)
+    bpy.context.view_layer.objects.active = ob
+    ob.select_set(True)
+    say("material", ob.name, ob.active_material.name)
+    bpy.app.timers.register(show_material_tab, first_interval=1.0)    # tabs follow on the next redraw
+
+
+@step
+def show_material_tab():
+    for _, area in areas("PROPERTIES"):
+        area.spaces.active.context = "MATERIAL"
+    bpy.context.view_layer.objects.active.active_material.preview_ensure()
+    bpy.app.timers.register(material_preview, first_interval=PREVIEW_WAIT)
+
+
+@step
+def material_preview():
+    mat = bpy.context.view_layer.objects.active.active_material
+    icon = mat.preview.icon_pixels_float
+    size = tuple(mat.preview.icon_size)
+    mean = float(sum(icon) / max(len(icon), 1))
+    screenshot("material.png")
+    say("preview", f"{size[0]}x{size[1]}", f"{mean:.4f}")
+    for _, area in areas("PROPERTIES"):
+        area.spaces.active.context = "RENDER"
 
 
 @step
@@ -125,5 +160,6 @@ def batch():
 
 say("versions", sys.version.split()[0], bpy.app.version_string)
 bpy.app.timers.register(pick_engine, first_interval=1.5)
+bpy.app.timers.register(material_tab, first_interval=2.0)
 bpy.app.timers.register(rendered_viewport, first_interval=RENDERED_AT)
 bpy.app.timers.register(f12, first_interval=F12_AT)
