@@ -41,6 +41,7 @@ import sys
 import threading
 import time
 import traceback
+import warnings
 
 import numpy as np
 
@@ -88,7 +89,14 @@ class Twin:
         try:
             files = [os.memfd_create("restir-twin", os.MFD_CLOEXEC) for _ in range(4)]
             pipes = [os.pipe(), os.pipe()]          # parent -> child, child -> parent
-            pid = os.fork()
+            with warnings.catch_warnings():
+                # Python 3.12+ warns that a fork of a multi-threaded process
+                # (Blender's is) may leave the child stuck on a lock another
+                # thread held: such a child never answers, and the parent
+                # goes on alone after WAIT_SECONDS (see above).
+                warnings.filterwarnings("ignore", r"This process \(pid=\d+\) is multi-threaded",
+                                        DeprecationWarning)
+                pid = os.fork()
         except OSError:
             for fd in files + [fd for p in pipes for fd in p]:
                 os.close(fd)

@@ -318,3 +318,24 @@ def test14_a_loop_run_by_another_thread_than_the_main_one(workers):
     t.join(60)
     assert got.get("ok") is True and got["pids"][0] == os.getpid() and got["pids"][-1] != os.getpid()
     assert gone(int(got["pids"][-1]))
+
+
+def test15_forking_a_process_with_threads_warns_nothing(workers):
+    """Blender's process has threads; Python 3.12+ warns at every fork of such
+    a process (the child may find a lock held), which the twin provides for
+    (the parent goes on alone). The fork adds no warning to the render."""
+    import threading
+    import warnings
+    stop = threading.Event()
+    other = threading.Thread(target=stop.wait)
+    other.start()
+    try:
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            with workers.twin(N) as lead:
+                pids = np.concatenate(workers.map(lambda a, b: np.full(b - a, os.getpid()), N))
+    finally:
+        stop.set()
+        other.join()
+    assert lead and pids[-1] != os.getpid()
+    assert not [str(w.message) for w in caught if "fork" in str(w.message)]
