@@ -17,8 +17,8 @@ and the warm-up frames are set on every file; everything else is the file's.
 
 Per file and mode the result is one of
 
-- ``rendered``: finished, no NaN or Inf in the Combined pass;
-- ``nan``: finished, but the Combined pass holds NaN or Inf pixels (counted);
+- ``rendered``: finished, no NaN or Inf in any pass of the result;
+- ``nan``: finished, but a pass holds NaN or Inf pixels (counted, passes named);
 - ``failed``: the engine reported an error (``RenderEngine.report``, e.g.
   ``ReSTIR GI render failed: ...``, which makes Blender's render operator
   raise) or a Python exception escaped it; the first line of the error is
@@ -316,7 +316,9 @@ def write_report(path: str, args: argparse.Namespace, files: list[str], skipped:
             if e.get("where"):
                 error += " (at {})".format(e["where"])
             if e["status"] == "nan":
-                error = "{} NaN, {} Inf pixels".format(e.get("nan_pixels", 0), e.get("inf_pixels", 0))
+                error = "{} NaN, {} Inf pixels (passes: {})".format(
+                    e.get("nan_pixels", 0), e.get("inf_pixels", 0),
+                    ", ".join(sorted(e.get("bad_passes", {}))))
             lines.append("| {} | {} | {} | {} |".format(
                 e["file"], MODE_TITLES[e["mode"]], e["status"], error.replace("|", "\\|")))
         lines.append("")
@@ -501,6 +503,31 @@ def frame_camera(bpy, scene) -> str:
     return what
 
 
+def non_finite(path: str) -> tuple[int, int, int, dict]:
+    """Pixels of a multilayer EXR with NaN, with Inf and with either in any
+    pass, and the passes that hold them ({pass: pixels})."""
+    import numpy as np
+    import OpenEXR
+    shape, nan, inf, per_pass = None, None, None, {}    # per pixel of the first part
+    with OpenEXR.File(path, separate_channels=True) as exr:
+        for part in exr.parts:
+            for name, channel in part.channels.items():
+                values = np.asarray(channel.pixels, np.float32)
+                if nan is None:
+                    shape = values.shape
+                    nan, inf = np.zeros(shape, bool), np.zeros(shape, bool)
+                if values.shape == shape:
+                    nan |= np.isnan(values)
+                    inf |= np.isinf(values)
+                count = int((~np.isfinite(values)).sum())
+                if count:
+                    layer_pass = name.rsplit(".", 1)[0]
+                    per_pass[layer_pass] = max(per_pass.get(layer_pass, 0), count)
+    if nan is None:
+        return 0, 0, 0, {}
+    return int(nan.sum()), int(inf.sum()), int((nan | inf).sum()), per_pass
+
+
 def worker(spec: dict) -> int:
     """Render spec['blend'] in spec['mode']; write the outcome to spec['result']."""
     sys.path.insert(0, TOOLS)
@@ -579,25 +606,26 @@ def worker(spec: dict) -> int:
         sys.excepthook = default_hook
     seconds = round(time.perf_counter() - t0[0], 2)
 
-    # The Combined pass, as a 32-bit float EXR, read back for NaN and Inf.
+    # Every pass of the result, as a 32-bit float multilayer EXR, read back
+    # for NaN and Inf.
     image_settings = render.image_settings
-    image_settings.file_format = 'OPEN_EXR'
+    if hasattr(image_settings, "media_type"):       # Blender 5.0 and newer
+        image_settings.media_type = 'MULTI_LAYER_IMAGE'
+    image_settings.file_format = 'OPEN_EXR_MULTILAYER'
     image_settings.color_depth = '32'
     result_image = bpy.data.images['Render Result']
     result_image.save_render(spec["image"], scene=scene)
     if spec["png"]:
+        if hasattr(image_settings, "media_type"):
+            image_settings.media_type = 'IMAGE'
         image_settings.file_format = 'PNG'
         image_settings.color_depth = '8'
         result_image.save_render(spec["png"], scene=scene)
-    import numpy as np
-    image = bpy.data.images.load(spec["image"])
-    pixels = np.empty(len(image.pixels), np.float32)
-    image.pixels.foreach_get(pixels)
-    pixels = pixels.reshape(-1, image.channels)
-    nan = int(np.isnan(pixels).any(axis=1).sum())
-    inf = int(np.isinf(pixels).any(axis=1).sum())
-    outcome = {"status": "nan" if nan or inf else "rendered", "seconds": seconds,
-               "nan_pixels": nan, "inf_pixels": inf, "bad_pixels": int((~np.isfinite(pixels)).any(axis=1).sum())}
+    nan, inf, bad, bad_passes = non_finite(spec["image"])
+    outcome = {"status": "nan" if bad else "rendered", "seconds": seconds,
+               "nan_pixels": nan, "inf_pixels": inf, "bad_pixels": bad}
+    if bad_passes:
+        outcome["bad_passes"] = bad_passes
     if camera:
         outcome["camera"] = camera
     finish(outcome)

@@ -91,3 +91,25 @@ def test_sweep_time_limit(blends):
                            "--timeout", "0.5")
     assert proc.returncode == 1
     assert [(e["file"], e["status"]) for e in data["results"]] == [("good.blend", "timeout")]
+
+
+def test_non_finite_pixels_counted_per_pass(tmp_path):
+    import importlib.util
+
+    import numpy as np
+    import OpenEXR
+    spec = importlib.util.spec_from_file_location("sweep", SWEEP)
+    sweep_tool = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(sweep_tool)
+
+    combined = np.ones((3, 4), np.float32)
+    depth = np.full((3, 4), 1e10, np.float32)
+    combined[0, 1] = np.nan
+    depth[0, 1] = np.inf            # the same pixel: counted once
+    depth[2, 3] = -np.inf
+    channels = {"View Layer.Combined.R": combined, "View Layer.Combined.G": combined.copy(),
+                "View Layer.Depth.Z": depth}
+    path = str(tmp_path / "passes.exr")
+    OpenEXR.File({"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage},
+                 channels).write(path)
+    assert sweep_tool.non_finite(path) == (1, 2, 2, {"View Layer.Combined": 1, "View Layer.Depth": 2})
