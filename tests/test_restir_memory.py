@@ -11,11 +11,12 @@ from core.restir.temporal import state_bytes_per_pixel
 from scenes import cornell_box
 
 
-@pytest.mark.parametrize("narrow", [True, False])
+@pytest.mark.parametrize("narrow,denoise", [(True, False), (False, False), (False, True)])
 @pytest.mark.parametrize("accumulate", [16, 1])
 @pytest.mark.parametrize("mode", [BIASED, UNBIASED])
-def test_state_size_matches_the_arrays_held(mode, accumulate, narrow, monkeypatch):
-    """Narrow reservoirs (images of NARROW_MIN_PIXELS and more) and float32 ones."""
+def test_state_size_matches_the_arrays_held(mode, accumulate, narrow, denoise, monkeypatch):
+    """Narrow reservoirs (images of NARROW_MIN_PIXELS and more) and float32
+    ones; with the denoiser, its moments in the running means."""
     import core.reservoir_store as store
     if narrow:
         monkeypatch.setattr(store, "NARROW_MIN_PIXELS", 1)
@@ -23,10 +24,10 @@ def test_state_size_matches_the_arrays_held(mode, accumulate, narrow, monkeypatc
     ctx = RenderContext.build(scene)
     try:
         restir = ReSTIRGI()
-        settings = ReSTIRSettings(mode=mode, max_bounces=2, seed=1, accumulate=accumulate)
+        settings = ReSTIRSettings(mode=mode, max_bounces=2, seed=1, accumulate=accumulate, denoise=denoise)
         for f in range(2):
             restir.render_frame(ctx, settings, f)
-        assert restir.nbytes == 40 * 24 * state_bytes_per_pixel(accumulate > 1, pixels=40 * 24)
+        assert restir.nbytes == 40 * 24 * state_bytes_per_pixel(accumulate > 1, pixels=40 * 24, denoise=denoise)
     finally:
         ctx.close()
 

@@ -3,11 +3,13 @@
 Per frame: primary visibility (gbuffer.py) -> initial samples (initial.py) ->
 temporal resampling (temporal.py) -> spatial resampling (spatial.py) -> final
 shading (shading.py) -> reprojected accumulation of the shaded frames
-(accumulation.py); every few frames, sample validation (validation.py).
+(accumulation.py) -> optionally the denoiser (denoise.py); every few
+frames, sample validation (validation.py).
 ``ReSTIRGI`` owns the state that lives between frames; everything else is
 plain functions of plain arrays.
 """
 
+import contextlib
 import threading
 import time
 import numpy as np
@@ -24,6 +26,8 @@ from .accumulation import (COLUMNS, Accumulation, accumulate, geometric_edges, l
                            restart, same_view)
 from .adaptive_direct import light_sample_counts, reprojected_hold, update_noise_hold
 from .boiling import boiling_filter
+from .denoise import MOMENTS, frame_moments
+from .denoise import denoise as svgf        # (core.restir.denoise stays the module)
 from .gbuffer import FirstPass, FrameImage, trace_rows
 from .glossy_reuse import GlossySamples, reuse_glossy
 from .initial import initial_samples
@@ -90,8 +94,9 @@ class ReSTIRGI:
     def render_frame(self, ctx, settings, frame):
         """One frame. Afterwards ``last_timings`` holds seconds per pass: wall
         time for 'validation' and 'total', and for the passes the workers run
-        ('gbuffer', 'initial', 'temporal', 'spatial', 'glossy', 'shading') the sum over
-        workers, i.e. what they would take on one thread."""
+        ('gbuffer', 'initial', 'temporal', 'spatial', 'glossy', 'shading', and
+        'denoise' with ReSTIRSettings.denoise) the sum over workers, i.e.
+        what they would take on one thread."""
         try:
             return self._render_frame(ctx, settings, frame)
         except BaseException:
@@ -102,7 +107,7 @@ class ReSTIRGI:
     def _render_frame(self, ctx, settings, frame):
         t_start = time.perf_counter()
         timings = {"gbuffer": 0.0, "validation": 0.0, "initial": 0.0, "temporal": 0.0,
-                   "spatial": 0.0, "glossy": 0.0, "shading": 0.0}
+                   "spatial": 0.0, "glossy": 0.0, "shading": 0.0, "denoise": 0.0}
         lock = threading.Lock()
 
         def spent(name, t0):
@@ -249,7 +254,8 @@ class ReSTIRGI:
         # array that the second pass turns into this frame's running means
         # (accumulation.COLUMNS), each range reading and then overwriting its
         # own rows: no whole-image arrays of their own.
-        shaded = np.empty((n, COLUMNS), np.float32)
+        # With the denoiser the running means carry its moments too (denoise.py).
+        shaded = np.empty((n, COLUMNS + (MOMENTS if settings.denoise else 0)), np.float32)
         # Objects hidden from some kinds of rays: the shadow rays of path reuse
         # would not know which kind they stand for.
         path_reuse = settings.glossy_reuse and not getattr(ctx.accel, "per_kind_visibility", False)
@@ -291,7 +297,8 @@ class ReSTIRGI:
         carry = settings.spatial and biased and history is not None and bool((prev_pix >= 0).any())
         shared = shared_terms(temporal, biased) if settings.spatial else None
         prev_acc = None
-        if accumulating and history is not None and history.accumulation is not None:
+        if accumulating and history is not None and history.accumulation is not None \
+                and history.accumulation.data.shape[1] == shaded.shape[1]:    # (the denoiser toggled: none)
             prev_acc = history.accumulation
             if forget_all:
                 restart(prev_acc)
@@ -352,11 +359,13 @@ class ReSTIRGI:
                 if prev_acc is not None:
                     footprint = previous_pixels(scene, part, history, motion, still_scene=not moved,
                                                 edges=None if edges is None else edges[a:b])
+                moments = frame_moments(direct_total, indirect, one.albedo[a:b]) if settings.denoise else None
                 # (without accumulation: this frame's values, as a mean of one frame)
                 rows = accumulate(prev_acc, footprint, direct_total, indirect, one.albedo[a:b], img.n[a:b],
                                   settings.accumulate, one.alpha[a:b], seen,
                                   None if refined is None else refined.rows(a, b),
-                                  None if gate is None else gate.rows(a, b), settings.frame_weight).data
+                                  None if gate is None else gate.rows(a, b), settings.frame_weight,
+                                  moments).data
                 shaded[a:b] = rows
             color = rows[:, 0:3] + rows[:, 3:6] + rows[:, 14:17]
             spent("shading", t)
@@ -365,6 +374,19 @@ class ReSTIRGI:
         spatial, visibility, color = ctx.workers.map_into(reuse, n, written=(shaded,))
         if spatial is None:
             spatial = temporal      # without spatial reuse the two are one
+        noisy = None
+        if settings.denoise:
+            @contextlib.contextmanager
+            def denoising():
+                t = time.perf_counter()
+                try:
+                    yield
+                finally:
+                    spent("denoise", t)
+
+            with stage("denoising"):
+                noisy, color = color, svgf(ctx.workers, shaded, img.depth, img.valid, img.width, img.height,
+                                           timed=denoising)
         frame_acc = Accumulation(shaded)
         acc = frame_acc if accumulating else None
         direct_total, indirect, albedo, normal, alpha = frame_acc.direct, frame_acc.indirect, \
@@ -393,7 +415,7 @@ class ReSTIRGI:
         visible_rows = prev_pix[img.valid]
         found = float((visible_rows >= 0).mean()) if len(visible_rows) else 0.0
         return FrameResult(color, direct_total, indirect, img.depth, normal, albedo,
-                           spatial.M.copy(), spatial.W.copy(), found, alpha.copy())
+                           spatial.M.copy(), spatial.W.copy(), found, alpha.copy(), noisy)
 
 
 def _distinct(*sets):

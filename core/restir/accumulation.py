@@ -46,7 +46,7 @@ class Accumulation:
     """Running means per pixel (full-image rows) and the frames each holds,
     packed in one (P, COLUMNS) array so a history read is one gather per tap."""
     data: np.ndarray        # (P, COLUMNS) float32: direct light, indirect, albedo, normal, count,
-                            # alpha, seen directly
+                            # alpha, seen directly (and with the denoiser, its moments after them)
 
     @property
     def direct(self):
@@ -80,6 +80,11 @@ class Accumulation:
     def alpha(self):
         """Mean coverage by geometry (Film > Transparent's alpha)."""
         return self.data[:, 13]
+
+    @property
+    def moments(self):
+        """The columns after COLUMNS (the denoiser's moments), or None."""
+        return self.data[:, COLUMNS:] if self.data.shape[1] > COLUMNS else None
 
     @property
     def nbytes(self):
@@ -291,11 +296,14 @@ def _catmull_rom(t):
 
 
 def accumulate(prev, footprint, direct, indirect, albedo, normal, cap, alpha=1.0, seen=0.0, refined=None,
-               direct_range=None, weight=1.0):
+               direct_range=None, weight=1.0, moments=None):
     """This frame's Accumulation: the history over ``footprint`` (rows of the
     part) blended with this frame's values, over at most ``cap`` frames.
     prev: last frame's Accumulation (whole image) or None. weight: this
     frame's weight in the mean, in frames (the count column sums them).
+    moments: (N, k) further values averaged alike, in columns after
+    COLUMNS (the denoiser's, denoise.frame_moments), or None; prev then
+    holds them too.
 
     refined: silhouettes.RefinedSeen of the part's rows, or None. The
     radiance seen directly (seen) of its ``own`` pixels (the brightest
@@ -321,10 +329,12 @@ def accumulate(prev, footprint, direct, indirect, albedo, normal, cap, alpha=1.0
     noisy direct light (many lights: the range of nine one-sample pixels
     often lies below their mean); a neighbourhood that agrees is neither."""
     n = len(direct)
-    new = np.empty((n, COLUMNS), np.float32)
+    new = np.empty((n, COLUMNS + (0 if moments is None else moments.shape[1])), np.float32)
     new[:, 0:3], new[:, 3:6], new[:, 6:9], new[:, 9:12], new[:, 12] = direct, indirect, albedo, normal, weight
     new[:, 13] = alpha
     new[:, 14:17] = seen
+    if moments is not None:
+        new[:, COLUMNS:] = moments
     if prev is None or cap <= 1 or footprint is None:
         return Accumulation(new)
     wts = footprint.weights

@@ -58,12 +58,14 @@ class ReSTIRSettings:
                                     # it to the reservoirs' sky samples
     frame_weight: float = 1.0       # this frame's weight in the running means, in frames
                                     # (an unbiased still's first frames weigh less: core/render.py)
+    denoise: bool = False           # filter the running means (denoise.py; FrameResult.color is
+                                    # then the filtered image and .noisy the image before)
 
 
 @dataclass
 class FrameResult:
     """One frame, full-image rows (pixel index y * width + x)."""
-    color: np.ndarray       # (P, 3) direct + indirect
+    color: np.ndarray       # (P, 3) direct + indirect (denoised with ReSTIRSettings.denoise)
     direct: np.ndarray      # (P, 3) emission seen directly + direct light (accumulated)
     indirect: np.ndarray    # (P, 3) (accumulated)
     depth: np.ndarray       # (P,) this frame's
@@ -73,3 +75,4 @@ class FrameResult:
     W: np.ndarray           # (P,) spatial reservoir W
     history_found: float    # fraction of visible pixels with accepted temporal history
     alpha: np.ndarray = None  # (P,) coverage by geometry (accumulated; Film > Transparent)
+    noisy: np.ndarray = None  # (P, 3) color before the denoiser (None when it is off)

@@ -16,6 +16,7 @@ from ..reservoirs import finalize, merge
 from ..sampling import dot
 from ..rows import gather
 from .accumulation import COLUMNS
+from .denoise import MOMENTS
 from .shift import J_MAX, J_MIN, jacobian, shift_weight, target_at
 
 NORMAL_COS_MIN = 0.9        # about 25 degrees
@@ -62,14 +63,14 @@ _GBUFFER_BYTES = 3 * 3 * 4 + 4 + 1 + 4
 _FLAG_BYTES = 1 + 1
 
 
-def state_bytes_per_pixel(accumulating=True, pixels=NARROW_MIN_PIXELS):
+def state_bytes_per_pixel(accumulating=True, pixels=NARROW_MIN_PIXELS, denoise=False):
     """Bytes per pixel of what a frame of ``pixels`` pixels keeps for the
     next (FrameHistory): the temporal and spatial reservoirs (narrowed from
     NARROW_MIN_PIXELS on: reservoir_store.py), the G-buffer history, two
-    flags and, when frames are accumulated, the running means
-    (docs/memory.md)."""
+    flags and, when frames are accumulated, the running means, with the
+    denoiser's moments when it is on (docs/memory.md)."""
     return (2 * bytes_per_row(pixels, kept=True) + _GBUFFER_BYTES + _FLAG_BYTES
-            + (COLUMNS * 4 if accumulating else 0))
+            + ((COLUMNS + (MOMENTS if denoise else 0)) * 4 if accumulating else 0))
 
 
 def _object_motions(scene, history):

@@ -1,0 +1,188 @@
+"""A denoiser for the running means: spatiotemporal variance-guided filtering
+(SVGF, Schied et al. 2017) of the demodulated light.
+
+The running means (accumulation.py) are SVGF's temporal stage: each pixel's
+light averaged over its reprojected history, restarted at disocclusions.
+With ``ReSTIRSettings.denoise`` they also carry the first and second moments
+of the luminance of each frame's demodulated light (MOMENTS columns after
+accumulation.COLUMNS), blended as the other columns are, so their spread is
+the light's variance over the pixel's history. Here:
+
+1. Demodulation: the light of the visible point (direct light plus the
+   indirect light of both lobes; not the radiance seen directly, emitters
+   and the world, which stay sharp) divided by the albedo pass, each channel
+   at least ALBEDO_MIN. Texture then leaves the signal the filter blurs and
+   comes back whole when the filtered light is multiplied by the albedo again.
+2. Variance of each pixel's mean: the moments' variance over its history
+   divided by the frames it holds; where the history is shorter than
+   SHORT_HISTORY frames (first frames, disocclusions) from the moments of
+   the 7x7 pixels around it that see the same surface (depth, normals).
+3. Five iterations of an edge-avoiding a-trous wavelet filter
+   (edge_filter.py): B3 spline taps (5x5) at steps 1, 2, 4, 8 and 16
+   pixels, each tap weighted by depth (against the screen-space depth
+   gradient), normals (power 128) and luminance (against the square root of
+   the 3x3-blurred variance); the variance is filtered along (squared
+   weights), so each iteration blurs less than the one before. A pixel of
+   short history has a large variance, and is blurred more. The first
+   iteration compares luminance blurred over each pixel's 3x3 surface
+   (edge_filter.surface_blur): against each pixel's own, a bright pixel's
+   neighbours gave it little weight and the filter darkened skewed noise.
+4. Remodulation by the albedo, plus the radiance seen directly.
+
+Every step is a whole-image pass over pixel ranges (core/parallel.py). A
+range computes the image rows it touches; the taps read neighbouring rows
+from the whole-image arrays of the step before, so the image does not depend
+on how the pixels are split.
+
+Lag: the filter adds none of its own (it reads only this frame's means); the
+running means' history is what lags, and it restarts where accumulation.py
+restarts it (disocclusions, edits of lights and materials, the gate on
+moving objects' shadows), the restarted pixels then blurred more. A-SVGF's
+temporal gradients are not done here.
+"""
+
+import numpy as np
+
+from ..sampling import luminance
+from .accumulation import COLUMNS
+from .edge_filter import Image, atrous, depth_gradient, surface_blur, variance
+
+MOMENTS = 2                 # columns of the running means: mean luminance of the
+                            # demodulated light, and mean of its square
+ALBEDO_MIN = 0.01           # albedo each channel is demodulated by at least
+LIGHT_MAX = 1e15            # demodulated light is clipped to [0, LIGHT_MAX] (its square fits float32)
+DEPTH_MAX = 1e9             # depths are clipped to this (misses hold 1e10; no surface is farther)
+ITERATIONS = 5              # a-trous steps 1, 2, 4, 8, 16
+M1, M2 = COLUMNS, COLUMNS + 1  # the moments' columns
+
+
+def demodulated(light, albedo):
+    """(N, 3) float32: light (N, 3) divided by albedo (N, 3), each channel by
+    at least ALBEDO_MIN; non-finite light counts as 0, and the result lies
+    in [0, LIGHT_MAX]."""
+    light = np.nan_to_num(np.asarray(light, np.float32), nan=0.0, posinf=LIGHT_MAX, neginf=0.0)
+    out = light / _clip_albedo(albedo)
+    return np.clip(out, 0.0, LIGHT_MAX, out=out).astype(np.float32, copy=False)
+
+
+def frame_moments(direct, indirect, albedo):
+    """(N, MOMENTS) float32: this frame's luminance of the demodulated light
+    and its square, the values accumulation.accumulate averages."""
+    lum = luminance(demodulated(direct + indirect, albedo)).astype(np.float32)
+    return np.stack([lum, lum * lum], axis=1)
+
+
+def denoise(workers, data, depth, valid, width, height, iterations=ITERATIONS, timed=None):
+    """(P, 3) float32: the filtered image of the running means ``data`` (P,
+    accumulation.COLUMNS + MOMENTS), from this frame's view depth (P,) and
+    valid (P,) bool. Pixels that see no surface this frame keep their means.
+    timed: a context manager factory called around each range's work (the
+    frame's timings), or None."""
+    n = width * height
+    if n == 0:
+        return np.zeros((0, 3), np.float32)
+    cols = data.shape[1]
+    if cols < COLUMNS + MOMENTS:
+        raise ValueError(f"the running means hold {cols} columns: no moments (ReSTIRSettings.denoise)")
+    shape = (height, width)
+
+    def run(fn):
+        def part(a, b):
+            if timed is None:
+                return fn(a, b)
+            with timed():
+                return fn(a, b)
+        return part
+
+    # 1. Pointwise: demodulated light, its luminance, unit normals (zero where
+    # no surface is seen: every tap to such a pixel then weighs 0), depth.
+    def prepare(a, b):
+        rows = data[a:b]
+        c = demodulated(_light(rows), _albedo(rows))
+        ok = valid[a:b]
+        nrm = np.clip(np.nan_to_num(rows[:, 9:12], nan=0.0, posinf=0.0, neginf=0.0), -1e6, 1e6)
+        length = np.sqrt(nrm[:, 0] * nrm[:, 0] + nrm[:, 1] * nrm[:, 1] + nrm[:, 2] * nrm[:, 2])
+        inv = np.where(ok & (length > 1e-6), 1.0 / np.maximum(length, 1e-6), 0.0).astype(np.float32)
+        zr = np.nan_to_num(np.asarray(depth[a:b], np.float32), nan=0.0, posinf=0.0, neginf=0.0)
+        zr = np.where(inv > 0, np.clip(zr, -DEPTH_MAX, DEPTH_MAX), np.float32(0)).astype(np.float32)
+        m1, m2 = _moments(rows)
+        count = np.clip(np.nan_to_num(rows[:, 12], nan=1.0), 1.0 / 64, 1e9).astype(np.float32)
+        return (c[:, 0].copy(), c[:, 1].copy(), c[:, 2].copy(), luminance(c).astype(np.float32),
+                nrm[:, 0] * inv, nrm[:, 1] * inv, nrm[:, 2] * inv, zr, m1, m2, count)
+
+    red, green, blue, lum, nx, ny, nz, z, m1, m2, count = workers.map_into(run(prepare), n)
+    nimg = np.stack([nx, ny, nz]).reshape(3, *shape)
+    zimg = z.reshape(shape)
+    m1, m2, count = m1.reshape(shape), m2.reshape(shape), count.reshape(shape)
+
+    # 2. Depth gradient, variance, and the luminance the first iteration
+    # compares (neighbouring rows: 3x3 and 7x7 windows).
+    def spread(a, b):
+        r0, r1 = a // width, (b - 1) // width + 1
+        lo, hi = a - r0 * width, b - r0 * width
+        grad_x, grad_y = depth_gradient(zimg, nimg, r0, r1)
+        guide = surface_blur(lum.reshape(shape), zimg, nimg, grad_x, grad_y, r0, r1)
+        return (variance(m1, m2, count, zimg, nimg, grad_x, grad_y, r0, r1)[lo:hi],
+                grad_x.ravel()[lo:hi], grad_y.ravel()[lo:hi], guide.ravel()[lo:hi])
+
+    var, gx, gy, guide = workers.map_into(run(spread), n)
+    del m1, m2, count
+    img = Image(red, green, blue, lum, var, guide)
+    gimg = (gx.reshape(shape), gy.reshape(shape))
+
+    # 3. The a-trous iterations; the last one remodulates.
+    for i in range(iterations):
+        step = 1 << i
+        last = i == iterations - 1
+
+        def iteration(a, b, img=img, step=step, last=last):
+            r0, r1 = a // width, (b - 1) // width + 1
+            out = atrous(img, zimg, nimg, gimg, r0, r1, step, need_var=not last)
+            lo, hi = a - r0 * width, b - r0 * width
+            if not last:
+                return tuple(x.ravel()[lo:hi] for x in out)
+            c = np.stack([out[0].ravel()[lo:hi], out[1].ravel()[lo:hi], out[2].ravel()[lo:hi]], axis=1)
+            return remodulate(c, data[a:b], valid[a:b])
+
+        if not last:
+            img = Image(*workers.map_into(run(iteration), n))
+        else:
+            return workers.map_into(run(iteration), n)
+    # (no iterations): remodulate the demodulated means as they are
+    return workers.map_into(run(lambda a, b: remodulate(
+        np.stack([red[a:b], green[a:b], blue[a:b]], axis=1), data[a:b], valid[a:b])), n)
+
+
+def _clip_albedo(albedo):
+    """Albedo as the light is demodulated by: each channel in [ALBEDO_MIN, 1]."""
+    return np.clip(np.nan_to_num(np.asarray(albedo, np.float32), nan=0.0), ALBEDO_MIN, 1.0)
+
+
+def _albedo(rows):
+    return _clip_albedo(rows[:, 6:9])
+
+
+def remodulate(c, rows, valid):
+    """(N, 3) float32 colour of filtered demodulated light c (N, 3) for the
+    running means' rows (N, columns): c times the albedo plus the radiance
+    seen directly; rows that see no surface keep their means."""
+    out = np.where(valid[:, None], c * _albedo(rows), _light(rows))
+    out += _finite(rows[:, 14:17])
+    return out.astype(np.float32, copy=False)
+
+
+def _finite(x):
+    """x with non-finite values replaced, in [0, LIGHT_MAX]."""
+    return np.clip(np.nan_to_num(x, nan=0.0, posinf=LIGHT_MAX, neginf=0.0), 0.0, LIGHT_MAX)
+
+
+def _light(rows):
+    """The running means' light of the visible point (direct + indirect), finite."""
+    return _finite(rows[:, 0:3]) + _finite(rows[:, 3:6])
+
+
+def _moments(rows):
+    """The moments' columns of rows of the running means, finite and in range."""
+    m1 = np.clip(np.nan_to_num(rows[:, M1], nan=0.0, posinf=LIGHT_MAX), 0.0, LIGHT_MAX)
+    m2 = np.clip(np.nan_to_num(rows[:, M2], nan=0.0, posinf=LIGHT_MAX * LIGHT_MAX), 0.0, LIGHT_MAX * LIGHT_MAX)
+    return m1.astype(np.float32), m2.astype(np.float32)

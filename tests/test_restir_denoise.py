@@ -1,0 +1,245 @@
+"""The engine's denoiser (core/restir/denoise.py): an SVGF-style filter of the
+running means.
+
+On synthetic running means: a constant image stays constant; depth, normal
+and albedo edges stay edges while the flat sides are smoothed; any input,
+however wrong, gives a finite non-negative image; the image does not depend
+on how the pixels are split into ranges. On renders: the temporal part (the
+running means with the moments carried) is the image without the denoiser
+bit for bit, keeps the unbiased mode's mean, and the filtered image keeps
+the mean too.
+"""
+
+import dataclasses
+
+import numpy as np
+import pytest
+
+from core import RenderContext, RenderSettings, render_frame
+from core.parallel import Workers
+from core.render import render_restir
+from core.restir import BIASED, UNBIASED, ReSTIRGI, ReSTIRSettings
+from core.restir.accumulation import COLUMNS
+from core.restir.denoise import MOMENTS, denoise, frame_moments
+from core.sampling import luminance
+from scenes import cornell_box
+from test_restir_vs_path import Reference, assert_same_mean, z_limit
+
+W, H = 64, 48
+
+
+def means(light, albedo, count=8.0, normal=(0.0, 0.0, 1.0), seen=0.0, moments=None):
+    """Running means (P, COLUMNS + MOMENTS) of light (P, 3) split evenly between
+    direct and indirect, with the given albedo, normals, frames and moments
+    (default: each pixel's own light, no spread over its history)."""
+    n = len(light)
+    data = np.zeros((n, COLUMNS + MOMENTS), np.float32)
+    data[:, 0:3] = 0.5 * light
+    data[:, 3:6] = 0.5 * light
+    data[:, 6:9] = albedo
+    data[:, 9:12] = normal
+    data[:, 12] = count
+    data[:, 13] = 1.0
+    data[:, 14:17] = seen
+    data[:, COLUMNS:] = frame_moments(data[:, 0:3], data[:, 3:6], data[:, 6:9]) if moments is None else moments
+    return data
+
+
+def noisy_moments(lum, sigma):
+    """Moments of a history whose luminance had mean lum (P,) and spread sigma."""
+    return np.stack([lum, lum * lum + sigma * sigma], axis=1).astype(np.float32)
+
+
+def run(data, depth, valid=None, workers=None, **kw):
+    own = workers is None
+    workers = workers or Workers(1)
+    try:
+        valid = np.ones(len(depth), bool) if valid is None else valid
+        return denoise(workers, data, np.asarray(depth, np.float32), valid, W, H, **kw)
+    finally:
+        if own:
+            workers.close()
+
+
+def image(x):
+    return np.asarray(x).reshape(H, W, -1)
+
+
+def sloped_depth():
+    """A plane seen at an angle: depth growing along y."""
+    return np.repeat(np.linspace(3.0, 6.0, H, dtype=np.float32), W)
+
+
+# --------------------------------------------------------------- synthetic
+
+@pytest.mark.parametrize("count", [1.0, 8.0])
+def test01_a_constant_image_stays_constant(count):
+    """With short (spatial variance) and long histories (temporal), a spread
+    in the moments and a sloped plane: every pixel keeps the colour."""
+    n = W * H
+    light = np.tile(np.float32([0.6, 0.4, 0.2]), (n, 1))
+    albedo = np.tile(np.float32([0.5, 0.8, 0.3]), (n, 1))
+    lum = luminance(light / albedo).astype(np.float32)
+    data = means(light, albedo, count, seen=np.float32([0.1, 0.0, 0.0]), moments=noisy_moments(lum, 0.3))
+    out = run(data, sloped_depth())
+    expect = light + np.float32([0.1, 0.0, 0.0])
+    np.testing.assert_allclose(out, expect, rtol=1e-5)
+
+
+def edge_case(kind, rng):
+    """Two halves (left x < W / 2, right) that differ by ``kind``, each with
+    noisy light around its own level: levels closer than the noise's spread,
+    so that luminance alone would not keep them apart. Returns data, depth,
+    the noise-free colour image and the right half."""
+    n = W * H
+    x = np.tile(np.arange(W), H)
+    right = x >= W // 2
+    level = np.where(right, 1.6, 1.0).astype(np.float32)
+    albedo = np.full((n, 3), 0.5, np.float32)
+    normal = np.tile(np.float32([0, 0, 1]), (n, 1))
+    depth = np.full(n, 4.0, np.float32)
+    if kind == "depth":
+        depth[right] = 8.0
+    elif kind == "normal":
+        normal[right] = [1, 0, 0]
+    elif kind == "albedo":
+        level[:] = 2.0          # the same light on both sides; the albedo differs
+        albedo[right] = 0.9
+        albedo[~right] = 0.1
+    noise = rng.gamma(4.0, 0.25, n).astype(np.float32)      # mean 1, spread 0.5
+    light = (level * noise)[:, None] * albedo
+    sigma = 0.5 * level
+    data = means(light, albedo, 4.0, normal=normal, moments=noisy_moments(level, sigma))
+    clean = level[:, None] * albedo
+    return data, depth, clean, right
+
+
+@pytest.mark.parametrize("kind", ["depth", "normal", "albedo"])
+def test02_an_edge_stays_an_edge(kind, rng):
+    """Each side is smoothed and keeps its mean, and the columns on either
+    side of the edge stay at their side's level (no light bleeds across)."""
+    data, depth, clean, right = edge_case(kind, rng)
+    out = run(data, depth)
+    noisy = data[:, 0:3] + data[:, 3:6]
+    lum_out, lum_in, lum_clean = (luminance(image(v)) for v in (out, noisy, clean))
+    err_in = np.abs(lum_in - lum_clean).mean()
+    err_out = np.abs(lum_out - lum_clean).mean()
+    assert err_out < 0.5 * err_in, (err_out, err_in)
+    step = abs(float(lum_clean[:, W // 2].mean() - lum_clean[:, W // 2 - 1].mean()))
+    for side, cols, edge in ((0, np.s_[:W // 2 - 6], W // 2 - 1), (1, np.s_[W // 2 + 6:], W // 2)):
+        inner = float(lum_out[:, cols].mean())
+        assert abs(inner / float(lum_in[:, cols].mean()) - 1) < 0.03, (side, inner)
+        # The columns at the edge: within 10 % of the step of their side's inner mean.
+        for col in (edge, edge + (1 if side == 0 else -1) * -1):
+            bleed = abs(float(lum_out[:, col].mean()) - inner)
+            assert bleed < 0.1 * step, (side, col, bleed, step)
+    if kind == "albedo":
+        # The light is the same on both sides: what differs is the albedo alone.
+        ratio = lum_out[:, W // 2] / np.maximum(lum_out[:, W // 2 - 1], 1e-6)
+        assert abs(float(np.median(ratio)) - 9.0) < 1.0
+
+
+def test03_never_nan_inf_or_negative(rng):
+    n = W * H
+    cases = {
+        "zeros": np.zeros((n, COLUMNS + MOMENTS), np.float32),
+        "random": rng.normal(0, 10, (n, COLUMNS + MOMENTS)).astype(np.float32),
+        "huge": np.full((n, COLUMNS + MOMENTS), 3e38, np.float32),
+    }
+    wild = rng.normal(0, 1, (n, COLUMNS + MOMENTS)).astype(np.float32)
+    for value in (np.nan, np.inf, -np.inf, 1e30, -1e30, 0.0):
+        wild[rng.random(wild.shape) < 0.05] = value
+    cases["nan, inf and extremes"] = wild
+    depths = {"plane": np.full(n, 4.0, np.float32),
+              "wild": np.where(rng.random(n) < 0.1, np.nan,
+                               np.where(rng.random(n) < 0.1, 1e10, rng.random(n) * 1e3)).astype(np.float32),
+              "zero": np.zeros(n, np.float32)}
+    for name, data in cases.items():
+        for dname, depth in depths.items():
+            for valid in (np.ones(n, bool), rng.random(n) < 0.7):
+                out = run(data, depth, valid)
+                assert out.shape == (n, 3) and out.dtype == np.float32
+                assert np.isfinite(out).all(), (name, dname)
+                assert (out >= 0).all(), (name, dname)
+
+
+def test04_any_split_gives_the_same_image(rng):
+    """One range, ranges that end mid-row, two threads: the same bits."""
+    data, depth, _, _ = edge_case("depth", rng)
+    data[:, 12] = np.where(rng.random(W * H) < 0.2, 1.0, 8.0)     # some short histories
+    one = run(data, depth)
+    for workers in (Workers(1, max_range=997, processes=False), Workers(2, max_range=1500, processes=False),
+                    Workers(2, processes=False)):
+        try:
+            assert len(workers.ranges(W * H)) > 1 or workers.threads == 2
+            assert np.array_equal(run(data, depth, workers=workers), one)
+        finally:
+            workers.close()
+
+
+def test05_no_iterations_give_the_means_back(rng):
+    n = W * H
+    light = rng.random((n, 3)).astype(np.float32)
+    albedo = rng.uniform(0.05, 1.0, (n, 3)).astype(np.float32)
+    data = means(light, albedo, seen=0.25)
+    out = run(data, np.full(n, 4.0, np.float32), iterations=0)
+    np.testing.assert_allclose(out, light + 0.25, rtol=1e-5, atol=1e-7)
+
+
+# --------------------------------------------------------------- renders
+
+SIZE = 16
+MAX_BOUNCES = 4
+
+
+@pytest.fixture(scope="module")
+def ctx():
+    scene = cornell_box("area", SIZE, SIZE)
+    scene.filter_width = 1.5
+    c = RenderContext.build(scene)
+    yield c
+    c.close()
+
+
+@pytest.fixture(scope="module")
+def reference(ctx):
+    return Reference(render_frame(ctx, RenderSettings(samples=1024, max_bounces=MAX_BOUNCES, seed=0)))
+
+
+@pytest.mark.parametrize("mode", [BIASED, UNBIASED])
+def test06_the_running_means_are_the_same_bits_with_the_denoiser(ctx, mode):
+    """The moments ride along: what the frame was before the denoiser (Noisy
+    Image) is the image without it, over frames, in both modes."""
+    off, on = ReSTIRGI(), ReSTIRGI()
+    settings = ReSTIRSettings(mode=mode, seed=5, max_bounces=2)
+    for f in range(5):
+        a = off.render_frame(ctx, settings, f)
+        b = on.render_frame(ctx, dataclasses.replace(settings, denoise=True), f)
+        assert a.noisy is None and b.noisy is not None
+        assert np.array_equal(a.color, b.noisy)
+        for name in ("direct", "indirect", "albedo", "normal", "depth", "alpha"):
+            assert np.array_equal(getattr(a, name), getattr(b, name)), name
+        assert np.isfinite(b.color).all() and (b.color >= 0).all()
+
+
+def test07_unbiased_mean_is_kept(ctx, reference):
+    """Unbiased stills on a static scene, over seeds: the temporal part (the
+    image before the filter) has the path tracer's mean, per image and per
+    block; the filtered image's mean is within the confidence interval of
+    the reference's too (the filter blurs, so blocks are not compared)."""
+    noisy, filtered = [], []
+    for r in range(40):
+        out = render_restir(ctx, ReSTIRGI(), ReSTIRSettings(mode=UNBIASED, seed=4000 + r, max_bounces=MAX_BOUNCES,
+                                                            denoise=True), 0, frames=8, fresh=True)
+        noisy.append(luminance(out.noisy))
+        filtered.append(luminance(out.color))
+    noisy, filtered = np.stack(noisy).astype(np.float64), np.stack(filtered).astype(np.float64)
+    assert_same_mean(noisy, reference, "unbiased still, 8 frames, before the denoiser")
+    totals = filtered.sum(axis=1)
+    se = np.sqrt(totals.var(ddof=1) / len(totals) + reference.var_of_mean.sum())
+    z = (totals.mean() - reference.mean.sum()) / se
+    print(f"denoised: image mean {totals.mean() / SIZE ** 2:.5f} vs reference {reference.mean.mean():.5f}, "
+          f"z = {z:.2f}; before the denoiser {noisy.sum(axis=1).mean() / SIZE ** 2:.5f}")
+    assert abs(z) < z_limit(1)
+    # ... and it is smoother: the spread over seeds falls.
+    assert filtered.var(axis=0).mean() < noisy.var(axis=0).mean()
