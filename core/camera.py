@@ -33,6 +33,15 @@ def _frame(camera):
     return m[:3, 3], axes
 
 
+def camera_space_normals(camera, normals):
+    """(N, 3) float32 world-space normals (N, 3) in Cycles' camera space, as
+    its Denoising Normal pass holds them: x right, y up, z along the view
+    direction (a normal facing the camera is (0, 0, -1)); zero rows stay zero."""
+    _, axes = _frame(camera)
+    m = (axes * np.array([1.0, 1.0, -1.0])).astype(np.float32)     # columns: right, up, forward
+    return matmul3(np.asarray(normals, np.float32).reshape(-1, 3), m).astype(np.float32) + np.float32(0)
+
+
 def pixel_size(camera, width, height):
     """Size of one pixel on the image plane at unit distance (persp) or in world units (ortho)."""
     sensor, view = _fit(camera, width, height)

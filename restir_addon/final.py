@@ -26,7 +26,7 @@ from dataclasses import replace
 import numpy as np
 
 from ..core import RenderSettings, render_frame
-from ..core.camera import crop
+from ..core.camera import camera_space_normals, crop
 from ..core.errors import describe
 from ..core.environment import scene_environment
 from ..core.film import to_rgba
@@ -36,7 +36,7 @@ from ..core.restir import ReSTIRSettings
 from . import memory, state
 from .export.camera import export_camera, render_region, render_size
 from .memory import SceneTooLarge
-from .passes import PASSES
+from .passes import NOISY, PASSES
 
 UPDATE_INTERVAL = 1.0   # seconds between progressive result updates
 # Frames of resampling on the still scene where a chunk warm-up starts after
@@ -72,31 +72,49 @@ def restir_settings(scene):
         spatial_M_cap=float(s.spatial_m_cap), max_age=s.max_age,
         spatial_neighbors=s.spatial_neighbors, spatial_radius=float(s.spatial_radius),
         validation_interval=s.validation_interval, validate_on_change=True, light_samples=s.light_samples,
-        sky_samples=s.sky_samples, boiling_filter=float(s.boiling_filter))
+        sky_samples=s.sky_samples, boiling_filter=float(s.boiling_filter),
+        denoise=bool(getattr(s, "use_denoising", False)))
 
 
-def film_images(film):
+def denoising_normal(normal, camera):
+    """Denoising Normal (H, W, 3) of the Normal pass (H, W, 3, world space):
+    in camera space, as Cycles writes it (None without a camera)."""
+    if camera is None:
+        return None
+    return camera_space_normals(camera, normal.reshape(-1, 3)).reshape(normal.shape)
+
+
+def film_images(film, camera=None):
     """Pass name -> (H, W, C) float32 from a path-traced Film; Combined's
-    alpha: coverage by geometry with Film > Transparent, less holdouts."""
+    alpha: coverage by geometry with Film > Transparent, less holdouts.
+    camera: the scene's core Camera, for Denoising Normal."""
     alpha = film.aov("alpha", 1) if film.count else 1.0
     images = {"Combined": to_rgba(film.mean(), alpha), "Depth": film.aov("depth", 1),
               "Normal": film.aov("normal", 3), "Denoising Albedo": film.aov("albedo", 3)}
+    images["Denoising Normal"] = denoising_normal(images["Normal"], camera)
     if film.count == 0:
         images["Depth"] = np.full_like(images["Depth"], 1e10)
     return images
 
 
-def frame_images(frame, width, height):
-    """Pass name -> (H, W, C) float32 from a ReSTIR GI FrameResult."""
+def frame_images(frame, width, height, camera=None):
+    """Pass name -> (H, W, C) float32 from a ReSTIR GI FrameResult (Noisy
+    Image when it was denoised). camera: the scene's core Camera, for
+    Denoising Normal."""
     shape = (height, width)
     reservoir = np.stack([frame.M, frame.W, np.zeros_like(frame.M)], axis=1)
     alpha = frame.alpha.reshape(*shape, 1) if frame.alpha is not None else 1.0
-    return {"Combined": to_rgba(frame.color.reshape(*shape, 3), alpha),
-            "Depth": frame.depth.reshape(*shape, 1), "Normal": frame.normal.reshape(*shape, 3),
-            "Denoising Albedo": frame.albedo.reshape(*shape, 3),
-            "ReSTIR Direct": frame.direct.reshape(*shape, 3),
-            "ReSTIR Indirect": frame.indirect.reshape(*shape, 3),
-            "ReSTIR Reservoir": reservoir.reshape(*shape, 3)}
+    normal = frame.normal.reshape(*shape, 3)
+    images = {"Combined": to_rgba(frame.color.reshape(*shape, 3), alpha),
+              "Depth": frame.depth.reshape(*shape, 1), "Normal": normal,
+              "Denoising Normal": denoising_normal(normal, camera),
+              "Denoising Albedo": frame.albedo.reshape(*shape, 3),
+              "ReSTIR Direct": frame.direct.reshape(*shape, 3),
+              "ReSTIR Indirect": frame.indirect.reshape(*shape, 3),
+              "ReSTIR Reservoir": reservoir.reshape(*shape, 3)}
+    if frame.noisy is not None:
+        images[NOISY[0]] = to_rgba(frame.noisy.reshape(*shape, 3), alpha)
+    return images
 
 
 def _write(result, images, width, height):
@@ -105,12 +123,12 @@ def _write(result, images, width, height):
     layer = result.layers[0]
     if images is None:
         images = {"Combined": to_rgba(np.zeros((height, width, 3), np.float32))}
-    ours = {name for name, _, _, _ in PASSES} | {"Combined"}
+    ours = {name for name, _, _, _ in PASSES} | {"Combined", NOISY[0]}
     for p in layer.passes.values():
         data = images.get(p.name) if p.name in ours else None
         if data is None:
             continue
-        if p.name != "Combined":
+        if p.name not in ("Combined", NOISY[0]):
             data = np.asarray(data, np.float32)
             if not np.isfinite(data).all():     # (a test, not a copy, in the common case)
                 data = np.nan_to_num(data, nan=0.0, posinf=1e10, neginf=0.0)
@@ -127,7 +145,7 @@ def _render_path(engine, ctx, scene, result, width, height, export_s, samples=No
                                 f"| {seconds:.1f} s (export {export_s:.2f} s)")
         now = time.perf_counter()
         if now - last_update[0] > UPDATE_INTERVAL:
-            _write(result, film_images(f), width, height)
+            _write(result, film_images(f, ctx.scene.camera), width, height)
             engine.update_result(result)
             last_update[0] = now
 
@@ -135,7 +153,7 @@ def _render_path(engine, ctx, scene, result, width, height, export_s, samples=No
                         should_stop=engine.test_break)
     if film.count < settings.samples:
         engine.report({"INFO"}, f"Render cancelled after {film.count} of {settings.samples} samples")
-    return film_images(film)
+    return film_images(film, ctx.scene.camera)
 
 
 def _camera_name(scene):
@@ -272,7 +290,7 @@ def _render_restir(engine, ctx, scene, stream, width, height, export_s):
         return None
     if done[0] < frames:
         engine.report({"INFO"}, f"Render cancelled after {done[0]} of {frames} frames of resampling")
-    return frame_images(out, width, height)
+    return frame_images(out, width, height, ctx.scene.camera)
 
 
 def view_names(scene):

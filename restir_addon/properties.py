@@ -1,7 +1,7 @@
 """Settings of the engine, attached to every scene as ``scene.restir_gi``."""
 
 import bpy
-from bpy.props import EnumProperty, FloatProperty, IntProperty, PointerProperty
+from bpy.props import BoolProperty, EnumProperty, FloatProperty, IntProperty, PointerProperty
 
 MODE_ITEMS = (
     ("PATH", "Path Tracing", "Plain path tracing: samples per pixel, no reuse between frames"),
@@ -53,6 +53,16 @@ class RestirGISceneSettings(bpy.types.PropertyGroup):
         description="ReSTIR GI: frames in each pixel's running mean, carried through reprojection "
                     "(anti-aliasing and direct light settle over them; disocclusions and changed "
                     "lighting start over; 1 = off)",
+    )
+    use_denoising: BoolProperty(
+        name="Denoise", default=False,
+        description="ReSTIR GI: filter each frame's running means with the engine's own denoiser "
+                    "(edge-avoiding, guided by depth, normals and each pixel's variance); the image "
+                    "before it is kept in the Noisy Image pass",
+    )
+    use_preview_denoising: BoolProperty(
+        name="Viewport Denoise", default=True,
+        description="ReSTIR GI: filter the rendered viewport's frames with the engine's own denoiser",
     )
     initial_sampling: EnumProperty(
         name="Initial Sampling", items=INITIAL_SAMPLING_ITEMS, default="COSINE",

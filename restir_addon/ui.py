@@ -46,6 +46,8 @@ class RESTIR_RENDER_PT_sampling(RestirButtonsPanel, bpy.types.Panel):
             col.prop(settings, "chunk_warmup_frames")
             col.prop(settings, "accumulate_frames")
         col.prop(settings, "seed")
+        if settings.mode != "PATH":
+            layout.prop(settings, "use_denoising")
 
 
 class RESTIR_RENDER_PT_resampling(RestirButtonsPanel, bpy.types.Panel):
@@ -89,6 +91,9 @@ class RESTIR_RENDER_PT_viewport(RestirButtonsPanel, bpy.types.Panel):
         layout.prop(s, "viewport_frame_budget")
         layout.prop(s, "viewport_samples")
         layout.prop(s, "viewport_idle_frames")
+        row = layout.row()
+        row.active = s.mode != "PATH"
+        row.prop(s, "use_preview_denoising")
 
 
 class RESTIR_RENDER_PT_light_paths(RestirButtonsPanel, bpy.types.Panel):

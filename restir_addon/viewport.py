@@ -65,6 +65,7 @@ DEFAULT_FRAME_BUDGET = 0.25     # seconds per frame the AUTO scale aims for
 DEFAULT_SAMPLES = 32            # path tracing: samples before the viewport stops
 DEFAULT_IDLE_FRAMES = 32        # ReSTIR GI: frames of a still view before it stops
 DEFAULT_SETTLE_FRAMES = 8       # frames without edits before moved objects rejoin the static scene
+DEFAULT_DENOISE = True          # ReSTIR GI: the engine's denoiser on the frames (core/restir/denoise.py)
 
 # AUTO scale: go to a finer scale only when its predicted frame time is well
 # under the budget, to a coarser one only when well over (every change of
@@ -86,7 +87,9 @@ class ViewportSession(SceneSync):
     "HALF" or "QUARTER" (AUTO picks the finest scale whose frame time fits
     frame_budget). samples: path-traced samples before the viewport stops;
     idle_frames: ReSTIR frames of a still view before it stops; settle_frames:
-    frames without edits before moved objects rejoin the static Embree scene.
+    frames without edits before moved objects rejoin the static Embree scene;
+    restir: the ReSTIRSettings to start from (None: the defaults, with the
+    denoiser on as DEFAULT_DENOISE says).
     """
 
     # The viewport's passes stay on threads: its frames are interrupted by
@@ -134,7 +137,7 @@ class ViewportSession(SceneSync):
         self.settle_frames = max(1, int(settle_frames))
         self.max_bounces = max_bounces if isinstance(max_bounces, Bounces) else int(max_bounces)
         self.seed = int(seed)
-        base = restir if restir is not None else ReSTIRSettings()
+        base = restir if restir is not None else ReSTIRSettings(denoise=DEFAULT_DENOISE)
         # One initial sample per pixel per frame, and stored samples validated
         # every validation_interval frames: the viewport favours frame rate.
         self.restir_settings = replace(base, mode=mode if mode != PATH else base.mode,

@@ -17,15 +17,19 @@ from .viewport_sync import camera_from_region
 
 def session_settings(scene):
     """ViewportSession arguments from the scene's settings (viewport_* ones
-    are optional: defaults when the scene has none)."""
+    are optional: defaults when the scene has none). The viewport denoises
+    with its own toggle (Viewport Denoise), not the final renders' one."""
+    from dataclasses import replace
     from .final import bounces, restir_settings
-    from .viewport import DEFAULT_FRAME_BUDGET, DEFAULT_IDLE_FRAMES, DEFAULT_SAMPLES, DEFAULT_SCALE
+    from .viewport import DEFAULT_DENOISE, DEFAULT_FRAME_BUDGET, DEFAULT_IDLE_FRAMES, DEFAULT_SAMPLES, \
+        DEFAULT_SCALE
     s = scene.restir_gi
+    restir = replace(restir_settings(scene), denoise=bool(getattr(s, "use_preview_denoising", DEFAULT_DENOISE)))
     return dict(mode=s.mode, scale=getattr(s, "viewport_scale", DEFAULT_SCALE),
                 samples=getattr(s, "viewport_samples", DEFAULT_SAMPLES),
                 idle_frames=getattr(s, "viewport_idle_frames", DEFAULT_IDLE_FRAMES),
                 frame_budget=getattr(s, "viewport_frame_budget", DEFAULT_FRAME_BUDGET),
-                max_bounces=bounces(scene), seed=s.seed, restir=restir_settings(scene))
+                max_bounces=bounces(scene), seed=s.seed, restir=restir)
 
 
 def view_update(engine, context, depsgraph):

@@ -7,7 +7,8 @@ however wrong, gives a finite non-negative image; the image does not depend
 on how the pixels are split into ranges. On renders: the temporal part (the
 running means with the moments carried) is the image without the denoiser
 bit for bit, keeps the unbiased mode's mean, and the filtered image keeps
-the mean too.
+the mean too. Through Blender: the settings reach the renderer, and the
+passes (Noisy Image, Denoising Normal) are in the multilayer EXR.
 """
 
 import dataclasses
@@ -243,3 +244,60 @@ def test07_unbiased_mean_is_kept(ctx, reference):
     assert abs(z) < z_limit(1)
     # ... and it is smoother: the spread over seeds falls.
     assert filtered.var(axis=0).mean() < noisy.var(axis=0).mean()
+
+
+# --------------------------------------------------------------- through Blender
+
+def test08_settings_reach_the_renderer(addon):
+    from addon_util import fresh
+    final, draw, vp = addon.restir_addon.final, addon.restir_addon.viewport_draw, addon.restir_addon.viewport
+    scene = fresh(mode="RESTIR_BIASED")
+    s = scene.restir_gi
+    assert not s.use_denoising and s.use_preview_denoising      # final renders off, the viewport on
+    assert not final.restir_settings(scene).denoise
+    assert draw.session_settings(scene)["restir"].denoise
+    s.use_denoising, s.use_preview_denoising = True, False
+    assert final.restir_settings(scene).denoise
+    assert not draw.session_settings(scene)["restir"].denoise
+    for kwargs, expect in ((draw.session_settings(scene), False), ({}, vp.DEFAULT_DENOISE)):
+        session = vp.ViewportSession(**kwargs)
+        try:
+            assert session.restir_settings.denoise == expect
+        finally:
+            session.close()
+
+
+@pytest.mark.parametrize("mode,denoise", [("RESTIR_BIASED", True), ("RESTIR_UNBIASED", True),
+                                          ("RESTIR_BIASED", False), ("PATH", True)])
+def test09_passes_in_the_multilayer_exr(addon, tmp_path, mode, denoise):
+    """Noisy Image when denoised (ReSTIR GI modes), Denoising Normal always:
+    camera space as Cycles writes it (a plane facing the camera: 0, 0, -1)."""
+    from addon_util import add_mesh, camera, fresh, read_passes, rect, render_exr, world
+    from blender_util import diffuse_material
+    scene = fresh(32, 32, samples=4, mode=mode)
+    scene.restir_gi.warmup_frames = 4
+    scene.restir_gi.use_denoising = denoise
+    camera(location=(0, 0, 5))
+    world((0.5, 0.5, 0.5))
+    add_mesh("Plane", *rect(-5, 0, -5, 5, z=1.0), mat=diffuse_material("Orange", (0.6, 0.3, 0.1)))
+    path = tmp_path / "passes.exr"
+    render_exr(scene, path, multilayer=True)
+    p = read_passes(path)
+    noisy_pass = denoise and mode != "PATH"
+    assert ("Noisy Image" in p) == noisy_pass, sorted(p)
+    assert {"Combined", "Normal", "Denoising Normal", "Denoising Albedo"} <= set(p)
+    for name, img in p.items():
+        assert np.isfinite(img).all(), name
+    left, right = np.s_[:, 2:13], np.s_[:, 19:30]
+    np.testing.assert_allclose(p["Denoising Normal"][left],
+                               np.broadcast_to([0, 0, -1], p["Denoising Normal"][left].shape), atol=1e-5)
+    np.testing.assert_allclose(p["Denoising Normal"][right], 0)
+    if noisy_pass:
+        noisy, combined = p["Noisy Image"], p["Combined"]
+        assert noisy.shape == combined.shape == (32, 32, 4)
+        np.testing.assert_allclose(noisy[..., 3], combined[..., 3])
+        # The world seen directly is not filtered; the lit plane keeps its mean.
+        np.testing.assert_allclose(combined[right][..., :3], noisy[right][..., :3], rtol=1e-6)
+        np.testing.assert_allclose(combined[left][..., :3].reshape(-1, 3).mean(axis=0),
+                                   noisy[left][..., :3].reshape(-1, 3).mean(axis=0), rtol=0.03)
+        assert not np.array_equal(combined[left], noisy[left])
