@@ -52,6 +52,10 @@ class BSDFParams:
     sheen_a: np.ndarray = None
     sheen_b: np.ndarray = None
     p_sheen: np.ndarray = None
+    # (N,) share of the GGX lobe that scatters once (Cycles' GGX distribution,
+    # as opposed to Multiscatter GGX): at_view puts back the energy single
+    # scattering loses only on the rest. None: every row is multiscatter.
+    spec_ss: np.ndarray = None
 
     def subset(self, index):
         index = np.asarray(index)
@@ -130,7 +134,8 @@ def at_view(params, wo):
     """Adjust parameters to the viewing direction wo (local, (N, 3)), in place,
     as Cycles' precomputed albedo tables do (core/microfacet_albedo.py): the
     layered diffuse keeps 1 - E of the dielectric layer above it, and the GGX
-    lobe is scaled up by the energy single scattering loses."""
+    lobe is scaled up by the energy single scattering loses (Multiscatter
+    GGX; not the share ``spec_ss`` of lobes with Cycles' plain GGX)."""
     from .microfacet_albedo import albedo_terms, dielectric_f90   # noqa: PLC0415
     n = len(params.alpha)
     if n == 0:
@@ -153,7 +158,10 @@ def at_view(params, wo):
         params.diffuse = np.maximum(params.diffuse - scale(params.layered, e_layer), 0.0).astype(np.float32)
     a, b = spread(a), spread(b)
     e1 = np.maximum(a + b, 1e-3)
-    boost = (1.0 + scale(f_avg, (1.0 - e1) / e1)).astype(np.float32)
+    lost = (1.0 - e1) / e1
+    if params.spec_ss is not None:
+        lost = lost * (1.0 - params.spec_ss)
+    boost = (1.0 + scale(f_avg, lost)).astype(np.float32)
     params.f0 = (params.f0 * boost).astype(np.float32)
     params.f90 = (f90 * boost).astype(np.float32)
     if params.sheen is not None:

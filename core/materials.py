@@ -48,6 +48,8 @@ class SceneShading:
                     getattr(table, name)[i] = getattr(row, name)[0]
                 if row.sheen is not None:
                     _add_sheen(table, [i], row)
+                if row.spec_ss is not None:
+                    _add_single_scatter(table, [i], row)
                 self.emission[i] = closure.get("emission", 1)[0]
                 self.transparent_row[i] = _pass_probability(closure, 1)[0]
                 self.holdout_row[i] = np.clip(closure.get("holdout", 1)[0], 0, 1)
@@ -67,6 +69,14 @@ class SceneShading:
             name = scene.materials.names[i] if i < len(scene.materials.names) else str(i)
             warn(f"Material '{name}': negative emission is not supported; it emits no light")
         np.maximum(self.emission, 0.0, out=self.emission)
+        # A ray that stops at a partly transparent surface stands for the ones
+        # that pass it too (core/transparency.py): it sees the surface's
+        # emission divided by the share that stops, as it sees its other
+        # lobes (params_of). Light samples on the surface see it undivided.
+        see_through = self.transparent_row > 0
+        self.stopped_emission = np.where(see_through, 1.0 / np.maximum(1.0 - self.transparent_row, 1e-3),
+                                         1.0).astype(np.float32)
+        self.divide_emission = bool((see_through & (self.emission > 0).any(axis=1)).any())
         self.table = table
         self.varying = [i for i, s in enumerate(self.compiled) if s is not None]
         # Graphs that vary over the surface and may emit: every ray sees their
@@ -99,6 +109,8 @@ def params_of(closure, n):
                          closure.get("spec_edge", n), glass)
     p.layered = layered
     p.layer_f0 = closure.averaged("layer_f0", n, 0.0)
+    if "spec_ss" in closure.fields:
+        p.spec_ss = closure.averaged("spec_ss", n, 0.0)
     if "sheen" in closure.fields:
         p.sheen = closure.get("sheen", n)
         p.sheen_rough = closure.averaged("sheen_rough", n, 0.5)
@@ -146,6 +158,8 @@ def surface_params(scene, surf, camera_ray=False):
             _add_glass(params, rows, p)
         if p.sheen is not None:
             _add_sheen(params, rows, p)
+        if p.spec_ss is not None or params.spec_ss is not None:
+            _add_single_scatter(params, rows, p)
         params.alpha[rows] = p.alpha
         params.p_spec[rows] = p.p_spec
         if closure.normal_sum is not None:
@@ -192,11 +206,16 @@ def surface_emission(scene, surf, lights, camera=False):
     if ids and n and not isinstance(surf, SurfaceHits):
         raise TypeError(f"surface_emission: the graphs of materials {sorted(ids)} are evaluated "
                         f"at each hit and need SurfaceHits, not {type(surf).__name__}")
+    if sh.divide_emission and n:      # partly transparent emitters (SceneShading)
+        em *= np.take(sh.stopped_emission, np.take(scene.material_ids, surf.prim))[:, None]
     for m in sorted(ids):
         rows = np.nonzero(surf.material == m)[0]
         if len(rows):
             closure = sh.compiled[m].closure(SurfaceGeometry(scene, surf.subset(rows), camera))
             e = np.maximum(closure.get("emission", len(rows)), 0.0)
+            t = _pass_probability(closure, len(rows))
+            if (t > 0).any():
+                e = e / np.maximum(1.0 - t, 1e-3)[:, None]
             if not lights.two_sided:
                 e = e * surf.front[rows, None]
             scatter(em, rows, e.astype(np.float32))
@@ -398,3 +417,12 @@ def triangle_emission(scene, subset=None):
         bary = np.full((len(tris), 2), 1 / 3, np.float32)
         scatter(em, local, emission_at_points(scene, tris, centre, n, n, bary))
     return em
+
+
+def _add_single_scatter(params, rows, p):
+    """Scatter the single-scattering share of rows' GGX lobes (p.spec_ss;
+    None: multiscatter) into params, creating the field (zero elsewhere)
+    on first use."""
+    if params.spec_ss is None:
+        params.spec_ss = np.zeros(len(params.alpha), np.float32)
+    params.spec_ss[rows] = 0.0 if p.spec_ss is None else p.spec_ss

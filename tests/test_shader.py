@@ -367,3 +367,57 @@ def test15_voronoi_cells(rng):
     assert (colour >= 0).all() and (colour <= 1).all()
     d0, _, _ = voronoi_f1(p, 0.0)
     np.testing.assert_allclose(d0, np.linalg.norm(p - np.round(p), axis=1), atol=1e-5)
+
+
+def test16_single_scattering_ggx_is_not_compensated():
+    """Cycles' GGX (older files' Glossy and Principled nodes) scatters once:
+    no energy put back, unlike Multiscatter GGX; a mixture of both is put
+    back in proportion, whether the graph is constant or per hit."""
+    from core.materials import params_of
+    wo = np.float32([[0.0, 0.0, 1.0]])
+
+    def f0(distribution, kind="BSDF_GLOSSY", mix=None):
+        inputs = {"Color": (0.9, 0.9, 0.9), "Base Color": (0.9, 0.9, 0.9), "Metallic": 1.0, "Roughness": 1.0}
+        nodes = [Node(kind, inputs, {"distribution": distribution})]
+        if mix is not None:
+            nodes += [Node(kind, inputs, {"distribution": mix}),
+                      Node("MIX_SHADER", {"Fac": 0.5, "Shader": Link(0, "BSDF"), "Shader_001": Link(1, "BSDF")})]
+        graph = ShaderGraph(nodes=nodes, output=Link(len(nodes) - 1, "BSDF" if mix is None else "Shader"))
+        p = bsdf.at_view(params_of(CompiledShader(graph).closure(ONE), 1), wo)
+        per_hit = surface_params(_quad_scene(graph), _hits(_quad_scene(graph), [[0.5, 0.2]]))
+        bsdf.at_view(per_hit, wo)
+        assert np.allclose(per_hit.f0, p.f0, rtol=1e-5)
+        return float(p.f0[0, 0])
+
+    for kind in ("BSDF_GLOSSY", "BSDF_PRINCIPLED"):
+        single, multi = f0("GGX", kind), f0("MULTI_GGX", kind)
+        assert single == pytest.approx(0.9, rel=1e-5) and multi > 1.5 * single
+        assert f0("GGX", kind, mix="MULTI_GGX") == pytest.approx((single + multi) / 2, rel=1e-5)
+    assert f0("BECKMANN") == pytest.approx(0.9, rel=1e-5)
+
+
+def test17_partly_transparent_emitters_emit_all_their_light():
+    """A ray stopping at a surface that lets a share t through stands for
+    the rays passing it too: it sees the emission divided by 1 - t (Cycles
+    adds the whole emission and continues through), constant or per hit.
+    Light samples on the surface (the triangle's emission) see it undivided."""
+    from core.lights import LightSet
+    from core.materials import surface_emission, transparency
+    emit = Node("EMISSION", {"Color": (1.0, 0.5, 0.25), "Strength": 2.0})
+    constant = [emit, Node("BSDF_TRANSPARENT"),
+                Node("MIX_SHADER", {"Fac": 0.25, "Shader": Link(0, "Emission"), "Shader_001": Link(1, "BSDF")})]
+    per_hit = [Node("UVMAP"), Node("SEPXYZ", {"Vector": Link(0, "UV")}), emit, Node("BSDF_TRANSPARENT"),
+               Node("MIX_SHADER", {"Fac": Link(1, "X"), "Shader": Link(2, "Emission"),
+                                   "Shader_001": Link(3, "BSDF")})]
+    xy = np.float32([[0.6, 0.1], [0.9, 0.3], [0.3, 0.8]])
+    for nodes in (constant, per_hit):
+        scene = _quad_scene(ShaderGraph(nodes=nodes, output=Link(len(nodes) - 1, "Shader")))
+        hits = _hits(scene, xy)
+        t = transparency(scene, hits)
+        assert (t > 0).all() and (t < 1).all()
+        lights = LightSet(scene)
+        np.testing.assert_allclose(surface_emission(scene, hits, lights), np.tile([2.0, 1.0, 0.5], (3, 1)),
+                                   rtol=1e-5)
+    # The constant one's triangles, as light samples see them: three quarters.
+    np.testing.assert_allclose(triangle_emission(_quad_scene(ShaderGraph(nodes=constant, output=Link(2, "Shader")))),
+                               np.tile([1.5, 0.75, 0.375], (2, 1)), rtol=1e-5)

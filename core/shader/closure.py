@@ -14,7 +14,10 @@ arrays:
   ``spec_rough`` the weight-averaged roughness of the lobes that fed it:
   two glossy lobes of different roughness become one of their mean roughness;
   ``spec_edge`` its reflectance at grazing incidence (white for Fresnel
-  lobes, the colour for a Glossy BSDF, which Cycles gives no Fresnel).
+  lobes, the colour for a Glossy BSDF, which Cycles gives no Fresnel);
+  ``spec_ss`` the weight-averaged share of those lobes that scatter once
+  (distribution GGX: no multiple-scattering energy put back; Multiscatter
+  GGX, the default, gives 0).
 - ``transmission`` and ``trans_refl``: weights of the refracted and the
   reflected part of the glass lobe (Glass, Refraction, Principled
   transmission; core/bsdf_glass.py), with weight-averaged ``ior`` and
@@ -41,7 +44,8 @@ import numpy as np
 COLOR_FIELDS = ("diffuse", "layered", "specular", "spec_edge", "transmission", "trans_refl",
                 "transparent", "translucent", "emission", "sheen")
 # Scalars summed with a weight and divided by it at the end: name -> (weight, lobe it averages over).
-AVERAGED = {"spec_rough": ("spec_w", "specular"), "trans_rough": ("trans_w", "transmission"),
+AVERAGED = {"spec_rough": ("spec_w", "specular"), "spec_ss": ("spec_w", "specular"),
+            "trans_rough": ("trans_w", "transmission"),
             "ior": ("trans_w", "transmission"), "layer_f0": ("layer_w", "layered"),
             "sheen_rough": ("sheen_w", "sheen")}
 BSDF_LOBES = ("diffuse", "layered", "specular", "transmission", "translucent", "sheen")

@@ -18,6 +18,10 @@ The Principled BSDF follows the layering of Cycles' Principled v2
   of the closure keeps 1 - the sheen's albedo (largest channel). Emission is
   not dimmed by it (nor by the coat). Within 0.5 % of Cycles' mean on the
   sheen family of tests/node_families.py, block chi 2.1 at 128x128.
+- Distribution GGX (older files, glTF imports) scatters once: the metallic
+  and specular lobes lose the energy Multiscatter GGX (the default) puts
+  back, as in Cycles. The Glossy BSDF's GGX, Beckmann and Ashikhmin-Shirley
+  do the same (the latter two drawn as GGX of the same roughness).
 - Anisotropy is approximated: Anisotropic stretches GGX's alpha to
   r^2 / a along the tangent and r^2 x a across it, a = sqrt(1 - 0.9 x
   Anisotropic) (Burley 2012's mapping, which Cycles follows); the lobe here
@@ -97,7 +101,7 @@ def principled(inp, geom, n, sh):
                          specular=specular * below,
                          spec_edge=(_c(metallic) + _c(dielectric) * _c(dielectric_f90(f0_d.mean(axis=-1))))
                          * np.ones((1, 3), np.float32) * below,
-                         spec_rough=rough, transmission=transmission * below,
+                         spec_rough=rough, spec_ss=_single_scatter(inp), transmission=transmission * below,
                          trans_refl=trans_refl * below,
                          trans_rough=rough, ior=ior)
     if np.any(coat > 0):
@@ -140,11 +144,19 @@ def diffuse_bsdf(inp, geom, n, sh):
     return {"BSDF": _bsdf(inp, geom, diffuse=np.clip(inp.color("Color", (0.8, 0.8, 0.8)), 0, None))}
 
 
+def _single_scatter(inp):
+    """1 where the node's microfacet distribution scatters once, as
+    Cycles' GGX, Beckmann and Ashikhmin-Shirley do (all drawn here as
+    GGX); None (no single-scattering share) for Multiscatter GGX, whose
+    lost energy Cycles puts back."""
+    return None if inp.prop("distribution", "MULTI_GGX") == "MULTI_GGX" else np.float32(1)
+
+
 @node("BSDF_GLOSSY", "BSDF_ANISOTROPIC")
 def glossy_bsdf(inp, geom, n, sh):
     color = np.clip(inp.color("Color", (0.8, 0.8, 0.8)), 0, None)
     return {"BSDF": _bsdf(inp, geom, specular=color, spec_edge=color,
-                          spec_rough=np.clip(inp.float("Roughness", 0.5), 0, 1))}
+                          spec_rough=np.clip(inp.float("Roughness", 0.5), 0, 1), spec_ss=_single_scatter(inp))}
 
 
 @node("BSDF_GLASS")
