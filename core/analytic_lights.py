@@ -6,7 +6,11 @@ Brightness follows Cycles (docs/cycles-conventions.md):
   disk of radius r facing the receiver, otherwise a sphere; r = 0 is a point;
 - spot mask: smoothstep((cos a - cos(size/2)) / ((1 - cos(size/2)) blend));
 - sun of strength E: irradiance E on a surface facing it, spread over its disk;
-- area light of power P and area A: one-sided radiance P / (pi A) along -Z.
+- area light of power P and area A: one-sided radiance P / (pi A) along -Z;
+- Light Falloff in a light's node tree (scene.Lights ``falloff`` and
+  ``falloff_smooth``): radiance times d^k (k = 1 Linear, 2 Constant) and
+  d^2 / (s + d^2) for a Smooth s > 0, d the distance from the shading point
+  to the point sampled on the light (Cycles' ray length); suns have none.
 Lights are not surfaces: they cast no shadow and rays pass through them;
 camera rays see them only where ``camera_visible`` is set (off by default).
 
@@ -101,6 +105,31 @@ class AnalyticLights:
         self._sphere_routines = {_POINT: self._sample_point, _DISK: self._sample_sphere_disk,
                                  _BALL: self._sample_sphere_cone}
         self._sun_constants()
+        self._falloff_constants()
+
+    def _falloff_constants(self):
+        """Per-light Light Falloff (exponent, smooth) and whether it changes
+        anything (not for suns: Cycles leaves distant lights' falloff out)."""
+        lt = self.lights
+        n = len(lt)
+        k = np.zeros(n, np.float32) if getattr(lt, "falloff", None) is None else \
+            np.asarray(lt.falloff, np.float32)
+        smooth = np.zeros(n, np.float32) if getattr(lt, "falloff_smooth", None) is None else \
+            np.asarray(lt.falloff_smooth, np.float32)
+        active = ((k != 0) | (smooth > 0)) & (np.asarray(lt.kind) != LIGHT_SUN)
+        self._falloff = (k, smooth, active) if active.any() else None
+
+    def _with_falloff(self, rad, li, one, dist):
+        """rad (N, 3) times each row's Light Falloff factor at the distance
+        dist (N,) to its light sample (module notes)."""
+        if self._falloff is None or (one is not None and not self._falloff[2][one]):
+            return rad
+        k, smooth, active = (_per_row(a, li, one) for a in self._falloff)
+        d = np.maximum(np.asarray(dist, np.float64), 0.0)
+        d2 = d * d
+        g = np.power(d, k) * np.where(smooth > 0, d2 / np.maximum(smooth + d2, 1e-30), 1.0)
+        g = np.where(active, g, 1.0)
+        return scale(np.broadcast_to(rad, (len(d), 3)), g.astype(np.float32)).astype(np.float32, copy=False)
 
     def __len__(self):
         return len(self.lights)
@@ -184,6 +213,7 @@ class AnalyticLights:
         """Point/spot lights of radius 0 (delta lights)."""
         one, r, to_c, d2, d, axis, r2, outside = self._sphere_common(li, p)
         rad = self._outside_only(self._sphere_radiance(li, one, axis, r2, d2), outside, len(p))
+        rad = self._with_falloff(rad, li, one, d)
         return (axis, d.astype(np.float32), rad, np.ones(len(p), np.float32),
                 np.ones(len(p), bool))
 
@@ -201,6 +231,7 @@ class AnalyticLights:
         cos_q = np.maximum(dot(wi, axis), 1e-12)
         pdf = dq2 / (cos_q * np.pi * np.maximum(r2, 1e-30))
         rad = self._outside_only(self._sphere_radiance(li, one, wi, r2), outside, len(p))
+        rad = self._with_falloff(rad, li, one, dq)
         return (wi, dq.astype(np.float32), rad, pdf.astype(np.float32),
                 np.zeros(len(p), bool))
 
@@ -215,6 +246,7 @@ class AnalyticLights:
         dist = proj - np.sqrt(np.maximum(r2 - (d2 - proj * proj), 0.0))
         pdf = 1.0 / (2.0 * np.pi * np.maximum(one_minus, 1e-30))
         rad = self._outside_only(self._sphere_radiance(li, one, wi, r2), outside, len(p))
+        rad = self._with_falloff(rad, li, one, dist)
         return (wi, dist.astype(np.float32), rad, pdf.astype(np.float32),
                 np.zeros(len(p), bool))
 
@@ -282,7 +314,7 @@ class AnalyticLights:
         radiance = _per_row(lt.power, li, one) / (np.pi * area)[:, None]
         front = cos_l > 0
         pdf = np.where(front, d2 / np.maximum(cos_l, 1e-12) / area, 0.0)
-        rad = _rows_where(front, radiance)
+        rad = self._with_falloff(_rows_where(front, radiance), li, one, d)
         return wi, d.astype(np.float32), rad, pdf.astype(np.float32), np.zeros(len(li), bool)
 
     # --- what rays crossing the lights see ---------------------------------------------
@@ -354,6 +386,8 @@ class AnalyticLights:
                 le = power / (4.0 * np.pi * np.pi * r * r)
             else:
                 continue  # point lights of zero radius and the sun: NEE only
+            if self._falloff is not None and self._falloff[2][li]:
+                le = self._with_falloff(le, np.full(len(rows), li), li, np.take(t, rows))
             # Only the rows that see the light (core/rows.py: no np.where over rows).
             if pdf_bsdf is None:
                 w = np.ones(len(rows), np.float32)

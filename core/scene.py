@@ -83,6 +83,12 @@ class Lights:
     # (L,) bool: the light's samples are not tested for occlusion (Cast Shadow
     # off); None: every light casts shadows
     shadowless: np.ndarray = None
+    # Light Falloff in the light's node tree (Cycles' svm light falloff):
+    # radiance times d^falloff (0 quadratic, the physical falloff; 1 linear;
+    # 2 constant) and, where falloff_smooth s > 0, times d^2 / (s + d^2), d
+    # the distance from the shading point to the light sample. Suns: none.
+    falloff: np.ndarray = None          # (L,) float32
+    falloff_smooth: np.ndarray = None   # (L,) float32
 
     @staticmethod
     def empty():
@@ -118,6 +124,8 @@ class Lights:
             names=[r.get("name", f"light_{i}") for i, r in enumerate(rows)],
             hidden_kinds=col("hidden_kinds", (False, False, False), bool, width=3),
             shadowless=col("shadowless", False, bool),
+            falloff=col("falloff", 0.0),
+            falloff_smooth=col("falloff_smooth", 0.0),
         )
 
     def __len__(self):

@@ -448,6 +448,44 @@ def test_light_node_trees_scale_the_power(addon):
     assert not s.warnings, s.warnings
 
 
+def test_light_falloff_becomes_the_lights_falloff(addon):
+    """Light Falloff in a light's tree: the output read (Quadratic, Linear,
+    Constant), its Smooth and what scales it on the way (a Value node, Math)
+    become the light's falloff law and power; a sun ignores it as Cycles'
+    distant lights do; two outputs added follow no single law (a warning,
+    and the value at distance 1)."""
+    fresh()
+
+    def with_falloff(name, kind, output, strength=2.0, smooth=0.0, scale=1.0, extra=None):
+        tree = _light_tree(add_light(name, kind, energy=10.0).data)
+        emit = next(n for n in tree.nodes if n.type == "EMISSION")
+        falloff = tree.nodes.new("ShaderNodeLightFalloff")
+        falloff.inputs["Strength"].default_value = strength
+        falloff.inputs["Smooth"].default_value = smooth
+        math = tree.nodes.new("ShaderNodeMath")
+        math.operation = "MULTIPLY" if extra is None else "ADD"
+        math.inputs[1].default_value = scale
+        tree.links.new(falloff.outputs[output], math.inputs[0])
+        if extra is not None:
+            tree.links.new(falloff.outputs[extra], math.inputs[1])
+        tree.links.new(math.outputs[0], emit.inputs["Strength"])
+
+    with_falloff("linear", "POINT", "Linear")
+    with_falloff("constant", "AREA", "Constant", smooth=0.5, scale=0.25)
+    with_falloff("quadratic", "SPOT", "Quadratic", strength=3.0)
+    with_falloff("sun", "SUN", "Constant", smooth=4.0)
+    with_falloff("mixed", "POINT", "Linear", extra="Constant")
+    s = export(addon)
+    expected = {"linear": (20.0, 1.0, 0.0), "constant": (5.0, 2.0, 0.5), "quadratic": (30.0, 0.0, 0.0),
+                "sun": (20.0, 0.0, 0.0), "mixed": (40.0, 0.0, 0.0)}
+    for name, (power, falloff, smooth) in expected.items():
+        i = s.lights.names.index(name)
+        np.testing.assert_allclose(s.lights.power[i], (power,) * 3, rtol=1e-5, err_msg=name)
+        assert (s.lights.falloff[i], s.lights.falloff_smooth[i]) == pytest.approx((falloff, smooth)), name
+    assert s.warnings == ["Light 'mixed': its Light Falloff is combined in a way not supported (only one "
+                          "of its outputs, scaled); the light emits as at distance 1 from everywhere"], s.warnings
+
+
 def test_negative_light_power_emits_nothing_and_says_so(addon):
     """Cycles subtracts the light of a negative power; the engine leaves the
     light out and warns."""

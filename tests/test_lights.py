@@ -293,6 +293,16 @@ HITTABLE = {
                               "power": 100 * COLOR, "radius": 0.5, "soft_falloff": False,
                               "spot_size": np.radians(70), "spot_blend": 0.6}], None),
     "triangle": lambda: ([], TRIANGLE),
+    # Light Falloff in the lights' node trees: rays that cross the light see
+    # the falloff of its samples.
+    "point_disk_linear_falloff": lambda: ([{"kind": LIGHT_POINT, "position": (0.4, 0.3, 1.5),
+                                            "power": 100 * COLOR, "radius": 0.5, "falloff": 1.0}], None),
+    "point_sphere_smooth_falloff": lambda: ([{"kind": LIGHT_POINT, "position": (0.4, 0.3, 1.5),
+                                              "power": 100 * COLOR, "radius": 0.5, "soft_falloff": False,
+                                              "falloff_smooth": 1.5}], None),
+    "area_constant_falloff": lambda: ([{**area_row(SHAPE_SQUARE, 0.8, 0.8, (0.3, 0.2, 1.2), (1, 0.2, 0),
+                                                   (0.2, -1, -0.1), 60 * COLOR),
+                                        "falloff": 2.0, "falloff_smooth": 0.7}], None),
 }
 AUX = {"kind": LIGHT_POINT, "position": (-1.0, 0.5, 2.0), "power": (40, 40, 40), "radius": 0.0}
 
@@ -441,3 +451,20 @@ def test12_follow_matches_a_new_set(rng):
     u1, u2 = rng.random(500, dtype=np.float32), rng.random((500, 2), dtype=np.float32)
     a, b = followed.sample(p, u1, u2), fresh.sample(p, u1, u2)
     assert np.array_equal(a.wi, b.wi) and np.allclose(a.pdf, b.pdf, rtol=1e-6)
+
+
+@pytest.mark.parametrize("k,smooth", [(1.0, 0.0), (2.0, 0.0), (0.0, 3.0), (1.0, 0.5)])
+def test13_light_falloff(k, smooth, rng):
+    """Light Falloff (Cycles' svm light falloff): a point lamp's radiance
+    times d^k and d^2 / (s + d^2), d the distance to it; a sun's stays."""
+    c = np.array([0.3, -0.2, 2.0])
+    d2 = c @ c
+    _, ls = light_set([{"kind": LIGHT_POINT, "position": c, "power": 100 * COLOR, "falloff": k,
+                        "falloff_smooth": smooth}])
+    est, _, _ = nee(ls, ORIGIN, UP, rng, count=100)
+    law = d2 ** (k / 2) * (d2 / (smooth + d2) if smooth > 0 else 1.0)
+    assert np.allclose(est, 100 * COLOR / (4 * np.pi) * (unit(c) @ UP) / d2 * law, rtol=1e-5)
+    _, sun = light_set([{"kind": LIGHT_SUN, "direction": (0, 0, -1), "power": COLOR, "falloff": k,
+                         "falloff_smooth": smooth}])
+    est, _, _ = nee(sun, ORIGIN, UP, rng, count=100)
+    assert np.allclose(est, COLOR, rtol=1e-5)

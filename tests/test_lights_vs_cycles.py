@@ -1,7 +1,8 @@
 """Spot (also with colour temperature and a light node tree), sun (also with
 Cast Shadow off), emissive Principled mesh, an emitter with a textured
-colour, world lighting, and many lamps and glowing cubes at once against
-Cycles.
+colour, world lighting, many lamps and glowing cubes at once, and lamps
+whose node trees use Light Falloff (linear, constant and quadratic, with
+Smooth) against Cycles.
 
 A floor with two boxes (Diffuse BSDF) is built in code and lit by one source at
 a time; both engines render it twice with independent seeds. As in
@@ -50,6 +51,15 @@ def _light(name, kind, location, rotation=(0, 0, 0), **props):
     ob.location, ob.rotation_euler = location, rotation
     bpy.context.scene.collection.objects.link(ob)
     return ob
+
+
+def _light_tree(light_object):
+    """The light's node tree: there by default from Blender 5.2 (whose
+    use_nodes is deprecated), made with use_nodes before."""
+    light = light_object.data
+    if light.node_tree is None:
+        light.use_nodes = True
+    return light.node_tree
 
 
 def _scene(source):
@@ -131,6 +141,46 @@ def _scene(source):
                    spot_size=math.radians(50), spot_blend=0.2, shadow_soft_size=0.05)
             _light(f"Panel{i}", "AREA", (-x, -y, 2.6), energy=80.0, size=0.4)
 
+    elif source == "falloff_point":
+        # A point lamp whose node tree sets its colour from an RGB node and
+        # its strength from Light Falloff's Linear output: light falling off
+        # as 1 / d, not 1 / d^2.
+        lamp = _light("Lamp", "POINT", (-0.4, -0.6, 2.2), energy=40.0, shadow_soft_size=0.15)
+        tree = _light_tree(lamp)
+        emission = next(n for n in tree.nodes if n.type == "EMISSION")
+        rgb = tree.nodes.new("ShaderNodeRGB")
+        rgb.outputs[0].default_value = (1.0, 0.15, 0.1, 1.0)
+        tree.links.new(rgb.outputs[0], emission.inputs["Color"])
+        falloff = tree.nodes.new("ShaderNodeLightFalloff")
+        falloff.inputs["Strength"].default_value = 2.0
+        tree.links.new(falloff.outputs["Linear"], emission.inputs["Strength"])
+    elif source == "falloff_area_spot":
+        # Light Falloff's Constant output with a Smooth on an area light, its
+        # Strength from a Value node; its Quadratic output with a Smooth on a
+        # spot, scaled by a Math node.
+        panel = _light("Panel", "AREA", (0.8, -1.2, 2.4), rotation=(math.radians(20), 0, 0), energy=15.0, size=0.6)
+        tree = _light_tree(panel)
+        emission = next(n for n in tree.nodes if n.type == "EMISSION")
+        emission.inputs["Color"].default_value = (0.4, 0.6, 1.0, 1.0)
+        falloff = tree.nodes.new("ShaderNodeLightFalloff")
+        value = tree.nodes.new("ShaderNodeValue")
+        value.outputs[0].default_value = 0.5
+        tree.links.new(value.outputs[0], falloff.inputs["Strength"])
+        falloff.inputs["Smooth"].default_value = 2.0
+        tree.links.new(falloff.outputs["Constant"], emission.inputs["Strength"])
+        spot = _light("Spot", "SPOT", (-0.6, 0.3, 3.5), energy=800.0, spot_size=math.radians(50),
+                      spot_blend=0.3, shadow_soft_size=0.1)
+        tree = _light_tree(spot)
+        emission = next(n for n in tree.nodes if n.type == "EMISSION")
+        falloff = tree.nodes.new("ShaderNodeLightFalloff")
+        falloff.inputs["Strength"].default_value = 1.0
+        falloff.inputs["Smooth"].default_value = 30.0
+        half = tree.nodes.new("ShaderNodeMath")
+        half.operation = "MULTIPLY"
+        half.inputs[1].default_value = 0.5
+        tree.links.new(falloff.outputs["Quadratic"], half.inputs[0])
+        tree.links.new(half.outputs[0], emission.inputs["Strength"])
+
     cam_data = bpy.data.cameras.new("Camera")
     cam_data.lens = 30.0
     cam = bpy.data.objects.new("Camera", cam_data)
@@ -143,7 +193,7 @@ def _scene(source):
 
 
 @pytest.mark.parametrize("source", ["spot", "warm_spot", "sun", "shadowless_sun", "emitter", "world",
-                                    "many_lamps", "textured_emitter"])
+                                    "many_lamps", "textured_emitter", "falloff_point", "falloff_area_spot"])
 def test_lights_match_cycles(addon, source):
     r = compare_with_cycles(_scene(source), SAMPLES, BOUNCES, BLOCK)
     assert np.isfinite(r["ours"]).all()

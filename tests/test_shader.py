@@ -421,3 +421,26 @@ def test17_partly_transparent_emitters_emit_all_their_light():
     # The constant one's triangles, as light samples see them: three quarters.
     np.testing.assert_allclose(triangle_emission(_quad_scene(ShaderGraph(nodes=constant, output=Link(2, "Shader")))),
                                np.tile([1.5, 0.75, 0.375], (2, 1)), rtol=1e-5)
+
+
+def test18_light_falloff_outside_lights_is_at_distance_one():
+    """Light Falloff on a surface (no ray length here): its outputs at
+    distance 1, with one warning where the distance would matter; in a
+    light's tree (a ray length given) Cycles' law in d."""
+    def falloff(output, smooth=0.0, ray_length=None):
+        warned = []
+        nodes = [Node("LIGHT_FALLOFF", {"Strength": 3.0, "Smooth": smooth}),
+                 Node("EMISSION", {"Color": (1.0, 1.0, 1.0), "Strength": Link(0, output)})]
+        geom = WorldGeometry(np.float32([[0, 0, 1]] * 3))
+        if ray_length is not None:
+            geom.ray_length = np.float32(ray_length)
+        c = CompiledShader(ShaderGraph(nodes=nodes, output=Link(1, "Emission")), warn=warned.append).closure(geom)
+        return c.get("emission", 3)[:, 0], warned
+
+    got, warned = falloff("Quadratic")
+    assert np.allclose(got, 3.0) and not warned
+    got, warned = falloff("Linear")
+    assert np.allclose(got, 3.0) and len(warned) == 1 and "distance 1" in warned[0]
+    got, warned = falloff("Constant", smooth=2.0, ray_length=[0.5, 1.0, 4.0])
+    d = np.float32([0.5, 1.0, 4.0])
+    assert np.allclose(got, 3.0 * d ** 2 * d ** 2 / (2.0 + d ** 2)) and not warned

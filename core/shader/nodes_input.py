@@ -1,6 +1,6 @@
 """Input and vector nodes: Texture Coordinate, UV Map, Geometry, Object Info,
-Light Path, Color Attribute, Attribute, Fresnel, Layer Weight, Mapping,
-Normal Map and Bump.
+Light Path, Light Falloff, Color Attribute, Attribute, Fresnel, Layer Weight,
+Mapping, Normal Map and Bump.
 
 Conventions from Cycles (``svm/tex_coord.h``, ``svm/fresnel.h``,
 ``svm/mapping_util.h``, ``svm/bump.h``). Bump has no ray differentials here:
@@ -108,6 +108,37 @@ _LIGHT_PATH_OUTPUTS = ("Is Camera Ray", "Is Shadow Ray", "Is Diffuse Ray", "Is G
                        "Is Reflection Ray", "Is Transmission Ray", "Is Volume Scatter Ray", "Ray Length",
                        "Ray Depth", "Diffuse Depth", "Glossy Depth", "Transparent Depth",
                        "Transmission Depth", "Portal Depth")
+
+
+# Cycles' ray length of distant lights (the sun): Light Falloff passes its Strength.
+FAR = np.float32(np.finfo(np.float32).max)
+
+
+@node("LIGHT_FALLOFF")
+def light_falloff(inp, geom, n, sh):
+    """Cycles' svm light falloff: Strength times 1, d or d^2 (Quadratic,
+    Linear, Constant) and d^2 / (Smooth + d^2) where Smooth > 0, d the ray
+    length. A light's node tree is evaluated with the distances to its
+    samples (restir_addon/export/lights.py turns it into the light's
+    falloff); surfaces carry no ray length here: d = 1, with a warning where
+    that matters (a Smooth, or the Linear or Constant output read)."""
+    strength = inp.float("Strength", 100.0)
+    smooth = inp.float("Smooth", 0.0)
+    d = getattr(geom, "ray_length", None)
+    if d is None:
+        d = np.float32(1)
+        index = sh.index.get(id(n)) if sh is not None else None
+        if index is not None and (np.any(smooth > 0) or any(
+                (index, name) in sh.read_outputs for name in ("Linear", "Constant"))):
+            sh.warn_once(("falloff", index), f"node '{n.name or n.kind}': Light Falloff outside a light's "
+                         f"nodes is evaluated at distance 1")
+    d = f32(d)
+    if np.all(d >= FAR):
+        return {"Quadratic": strength, "Linear": strength, "Constant": strength}
+    d2 = d * d
+    soft = np.where(smooth > 0, d2 / np.maximum(smooth + d2, np.float32(1e-30)), np.float32(1))
+    return {"Quadratic": f32(strength * soft), "Linear": f32(strength * d * soft),
+            "Constant": f32(strength * d2 * soft)}
 
 
 @varying

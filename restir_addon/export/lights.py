@@ -65,30 +65,80 @@ def light_row(light_object, matrix, warn):
     if getattr(light, "use_temperature", False):
         row["power"] = row["power"] * blackbody_rec709(np.float32(light.temperature)).ravel()
     if uses_nodes(light):
-        row["power"] = row["power"] * _node_emission(light, warn)
+        emission, row["falloff"], row["falloff_smooth"] = _node_emission(light, warn)
+        row["power"] = row["power"] * emission
     if not getattr(light, "normalize", True):
         row["power"] = row["power"] * _unnormalized_factor(row)
     return row
 
 
 def _node_emission(light, warn):
-    """The colour x strength a light's node tree emits (Cycles multiplies the
-    light's power by it): its Emission node, evaluated once. Textures in a
-    light's nodes vary over the light, which is not modelled: a warning, and
-    the value they give at the light's centre."""
+    """(colour x strength, falloff, smooth) of a light's node tree: Cycles
+    multiplies the light's power by the emission its tree gives, evaluated
+    once (Emission colour and strength, constant or from other nodes), and
+    a Light Falloff in it as the light's falloff (``_falloff``). Textures in
+    a light's nodes vary over the light, which is not modelled: a warning,
+    and the value they give at the light's centre."""
     from ...core.shader import CompiledShader, WorldGeometry   # noqa: PLC0415
     plain = _plain_emission(light.node_tree)
     if plain is not None:
-        return plain
+        return plain, 0.0, 0.0
     graph = translate(light.node_tree, ("OUTPUT_LIGHT",), None, light.name)
     if graph.output is None:
-        return np.ones(3)
+        return np.ones(3), 0.0, 0.0
     shader = CompiledShader(graph, {}, lambda text: warn(f"Light '{light.name}': {text}"))
     if not shader.uniform:
         warn(f"Light '{light.name}': textures in its nodes are not supported; using their value "
              f"at one point")
-    closure = shader.closure(WorldGeometry(np.float32([[0.0, 0.0, 1.0]])))
-    return np.asarray(closure.get("emission", 1)[0], np.float64)
+    falloff = [n for n in graph.nodes if n.kind == "LIGHT_FALLOFF"]
+    if not falloff:
+        return _emission_at(shader, WorldGeometry, [1.0])[0], 0.0, 0.0
+    if light.type == "SUN":     # Cycles: distant lights pass the node's Strength
+        return _emission_at(shader, WorldGeometry, [_FAR])[0], 0.0, 0.0
+    return _falloff(shader, WorldGeometry, falloff, lambda text: warn(f"Light '{light.name}': {text}"))
+
+
+_FAR = float(np.finfo(np.float32).max)
+# Distances at which a tree with Light Falloff is evaluated to find its law.
+_PROBES = np.array([0.125, 0.5, 1.0, 2.0, 8.0, 32.0])
+
+
+def _emission_at(shader, geometry, distances):
+    """(len(distances), 3) emission of the light's tree, its ray length set
+    to each distance."""
+    d = np.asarray(distances, np.float32)
+    geom = geometry(np.tile(np.float32([0.0, 0.0, 1.0]), (len(d), 1)))
+    geom.ray_length = d
+    return np.asarray(shader.closure(geom).get("emission", len(d)), np.float64)
+
+
+def _falloff(shader, geometry, nodes, warn):
+    """The tree's emission as c x d^k x (d^2 / (s + d^2) where s > 0): the
+    law of Cycles' Light Falloff outputs (k = 0 Quadratic, 1 Linear, 2
+    Constant; s its Smooth), found by evaluating the tree at several
+    distances d and matching those laws, so the falloff may pass through
+    other nodes that scale it (Math, a Mix of colours). (c, k, s); a tree
+    that follows none of them (two falloffs added, a falloff through a
+    non-linear node) gives its value at distance 1 and a warning."""
+    emission = _emission_at(shader, geometry, _PROBES)
+    at_one = emission[list(_PROBES).index(1.0)]
+    if not np.any(emission):
+        return at_one, 0.0, 0.0
+    smooths = {0.0}
+    for node in nodes:
+        value = node.inputs.get("Smooth", 0.0)
+        if isinstance(value, (int, float)) and value > 0:
+            smooths.add(float(value))
+    d2 = _PROBES * _PROBES
+    for k in (0, 1, 2):
+        for s in sorted(smooths):
+            law = _PROBES ** k * (d2 / (s + d2) if s > 0 else 1.0)
+            c = emission / law[:, None]
+            if np.allclose(c, c[2], rtol=1e-3, atol=1e-6 * np.abs(c[2]).max()):
+                return c[2], float(k), s
+    warn("its Light Falloff is combined in a way not supported (only one of its outputs, scaled); "
+         "the light emits as at distance 1 from everywhere")
+    return at_one, 0.0, 0.0
 
 
 def _plain_emission(tree):
