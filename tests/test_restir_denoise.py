@@ -29,20 +29,20 @@ from test_restir_vs_path import Reference, assert_same_mean, z_limit
 W, H = 64, 48
 
 
-def means(light, albedo, count=8.0, normal=(0.0, 0.0, 1.0), seen=0.0, moments=None):
-    """Running means (P, COLUMNS + MOMENTS) of light (P, 3) split evenly between
-    direct and indirect, with the given albedo, normals, frames and moments
-    (default: each pixel's own light, no spread over its history)."""
+def means(light, albedo, count=8.0, normal=(0.0, 0.0, 1.0), seen=0.0, moments=None, direct=0.0):
+    """Running means (P, COLUMNS + MOMENTS) of indirect light (P, 3), with the
+    given albedo, normals, frames, direct light, radiance seen directly and
+    moments (default: each pixel's own light, no spread over its history)."""
     n = len(light)
     data = np.zeros((n, COLUMNS + MOMENTS), np.float32)
-    data[:, 0:3] = 0.5 * light
-    data[:, 3:6] = 0.5 * light
+    data[:, 0:3] = direct
+    data[:, 3:6] = light
     data[:, 6:9] = albedo
     data[:, 9:12] = normal
     data[:, 12] = count
     data[:, 13] = 1.0
     data[:, 14:17] = seen
-    data[:, COLUMNS:] = frame_moments(data[:, 0:3], data[:, 3:6], data[:, 6:9]) if moments is None else moments
+    data[:, COLUMNS:] = frame_moments(data[:, 3:6], data[:, 6:9]) if moments is None else moments
     return data
 
 
@@ -81,9 +81,10 @@ def test01_a_constant_image_stays_constant(count):
     light = np.tile(np.float32([0.6, 0.4, 0.2]), (n, 1))
     albedo = np.tile(np.float32([0.5, 0.8, 0.3]), (n, 1))
     lum = luminance(light / albedo).astype(np.float32)
-    data = means(light, albedo, count, seen=np.float32([0.1, 0.0, 0.0]), moments=noisy_moments(lum, 0.3))
+    data = means(light, albedo, count, seen=np.float32([0.1, 0.0, 0.0]), moments=noisy_moments(lum, 0.3),
+                 direct=np.float32([0.0, 0.2, 0.0]))
     out = run(data, sloped_depth())
-    expect = light + np.float32([0.1, 0.0, 0.0])
+    expect = light + np.float32([0.1, 0.2, 0.0])
     np.testing.assert_allclose(out, expect, rtol=1e-5)
 
 
@@ -121,7 +122,7 @@ def test02_an_edge_stays_an_edge(kind, rng):
     side of the edge stay at their side's level (no light bleeds across)."""
     data, depth, clean, right = edge_case(kind, rng)
     out = run(data, depth)
-    noisy = data[:, 0:3] + data[:, 3:6]
+    noisy = data[:, 3:6]
     lum_out, lum_in, lum_clean = (luminance(image(v)) for v in (out, noisy, clean))
     err_in = np.abs(lum_in - lum_clean).mean()
     err_out = np.abs(lum_out - lum_clean).mean()
@@ -182,9 +183,26 @@ def test05_no_iterations_give_the_means_back(rng):
     n = W * H
     light = rng.random((n, 3)).astype(np.float32)
     albedo = rng.uniform(0.05, 1.0, (n, 3)).astype(np.float32)
-    data = means(light, albedo, seen=0.25)
+    data = means(light, albedo, seen=0.25, direct=0.5)
     out = run(data, np.full(n, 4.0, np.float32), iterations=0)
-    np.testing.assert_allclose(out, light + 0.25, rtol=1e-5, atol=1e-7)
+    np.testing.assert_allclose(out, light + 0.75, rtol=1e-5, atol=1e-7)
+
+
+def test06_direct_light_and_what_is_seen_directly_stay_sharp(rng):
+    """Only the indirect light is filtered: noise in the direct light and
+    in the radiance seen directly comes out as it went in."""
+    n = W * H
+    direct = rng.exponential(1.0, (n, 3)).astype(np.float32)
+    seen = rng.exponential(0.5, (n, 3)).astype(np.float32)
+    indirect = rng.gamma(4.0, 0.25, (n, 1)).astype(np.float32) * np.ones(3, np.float32)
+    albedo = np.full((n, 3), 0.5, np.float32)
+    data = means(indirect * albedo, albedo, 4.0, seen=seen, direct=direct,
+                 moments=noisy_moments(np.ones(n, np.float32), 1.0))
+    out = run(data, sloped_depth())
+    rest = out - direct - seen
+    np.testing.assert_allclose(rest.mean(), (indirect * albedo).mean(), rtol=0.03)
+    assert rest.std() < 0.5 * (indirect * albedo).std()
+    assert np.abs(rest - (indirect * albedo).mean()).max() < 0.5
 
 
 # --------------------------------------------------------------- renders
@@ -208,7 +226,7 @@ def reference(ctx):
 
 
 @pytest.mark.parametrize("mode", [BIASED, UNBIASED])
-def test06_the_running_means_are_the_same_bits_with_the_denoiser(ctx, mode):
+def test07_the_running_means_are_the_same_bits_with_the_denoiser(ctx, mode):
     """The moments ride along: what the frame was before the denoiser (Noisy
     Image) is the image without it, over frames, in both modes."""
     off, on = ReSTIRGI(), ReSTIRGI()
@@ -223,7 +241,7 @@ def test06_the_running_means_are_the_same_bits_with_the_denoiser(ctx, mode):
         assert np.isfinite(b.color).all() and (b.color >= 0).all()
 
 
-def test07_unbiased_mean_is_kept(ctx, reference):
+def test08_unbiased_mean_is_kept(ctx, reference):
     """Unbiased stills on a static scene, over seeds: the temporal part (the
     image before the filter) has the path tracer's mean, per image and per
     block; the filtered image's mean is within the confidence interval of
@@ -248,7 +266,7 @@ def test07_unbiased_mean_is_kept(ctx, reference):
 
 # --------------------------------------------------------------- through Blender
 
-def test08_settings_reach_the_renderer(addon):
+def test09_settings_reach_the_renderer(addon):
     from addon_util import fresh
     final, draw, vp = addon.restir_addon.final, addon.restir_addon.viewport_draw, addon.restir_addon.viewport
     scene = fresh(mode="RESTIR_BIASED")
@@ -269,7 +287,7 @@ def test08_settings_reach_the_renderer(addon):
 
 @pytest.mark.parametrize("mode,denoise", [("RESTIR_BIASED", True), ("RESTIR_UNBIASED", True),
                                           ("RESTIR_BIASED", False), ("PATH", True)])
-def test09_passes_in_the_multilayer_exr(addon, tmp_path, mode, denoise):
+def test10_passes_in_the_multilayer_exr(addon, tmp_path, mode, denoise):
     """Noisy Image when denoised (ReSTIR GI modes), Denoising Normal always:
     camera space as Cycles writes it (a plane facing the camera: 0, 0, -1)."""
     from addon_util import add_mesh, camera, fresh, read_passes, rect, render_exr, world
@@ -280,6 +298,9 @@ def test09_passes_in_the_multilayer_exr(addon, tmp_path, mode, denoise):
     camera(location=(0, 0, 5))
     world((0.5, 0.5, 0.5))
     add_mesh("Plane", *rect(-5, 0, -5, 5, z=1.0), mat=diffuse_material("Orange", (0.6, 0.3, 0.1)))
+    # A wall standing on the plane (seen edge-on) lights it indirectly.
+    add_mesh("Wall", np.array([[-2.5, -5, 1], [-2.5, 5, 1], [-2.5, 5, 3], [-2.5, -5, 3]], float), [[0, 1, 2, 3]],
+             mat=diffuse_material("White", (0.8, 0.8, 0.8)))
     path = tmp_path / "passes.exr"
     render_exr(scene, path, multilayer=True)
     p = read_passes(path)
@@ -296,7 +317,8 @@ def test09_passes_in_the_multilayer_exr(addon, tmp_path, mode, denoise):
         noisy, combined = p["Noisy Image"], p["Combined"]
         assert noisy.shape == combined.shape == (32, 32, 4)
         np.testing.assert_allclose(noisy[..., 3], combined[..., 3])
-        # The world seen directly is not filtered; the lit plane keeps its mean.
+        # The world seen directly is not filtered; the plane's indirect light
+        # is, and the plane keeps its mean.
         np.testing.assert_allclose(combined[right][..., :3], noisy[right][..., :3], rtol=1e-6)
         np.testing.assert_allclose(combined[left][..., :3].reshape(-1, 3).mean(axis=0),
                                    noisy[left][..., :3].reshape(-1, 3).mean(axis=0), rtol=0.03)

@@ -359,7 +359,7 @@ class ReSTIRGI:
                 if prev_acc is not None:
                     footprint = previous_pixels(scene, part, history, motion, still_scene=not moved,
                                                 edges=None if edges is None else edges[a:b])
-                moments = frame_moments(direct_total, indirect, one.albedo[a:b]) if settings.denoise else None
+                moments = frame_moments(indirect, one.albedo[a:b]) if settings.denoise else None
                 # (without accumulation: this frame's values, as a mean of one frame)
                 rows = accumulate(prev_acc, footprint, direct_total, indirect, one.albedo[a:b], img.n[a:b],
                                   settings.accumulate, one.alpha[a:b], seen,
