@@ -1,6 +1,7 @@
 """Where a ReSTIR GI frame spends its time, next to a 1 spp path-traced frame.
 
     .venv/bin/python bench/bench_restir.py [--blend ...] [--bounces 2] [--frames 12] [--scale 1]
+                                           [--denoise] [--workers 1,2,twin]
 
 For one worker, two worker threads, and two workers of which the second is a
 twin process (core/forked.py, the default for render loops on Linux): median
@@ -9,6 +10,8 @@ ms per pass over --frames frames of a warmed-up static view
 summed worker time for the passes the workers run; with a child process only
 the parent's share), and the 1 spp path-traced frame timed between them,
 with the ratio of the medians and each setup's speed-up over one worker.
+--denoise turns the engine's denoiser on (ReSTIRSettings.denoise): its
+column is then its time, and the last column its share of the frame.
 """
 
 import argparse
@@ -20,7 +23,8 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from bench_common import ROOT, export_blend, load_addon  # noqa: E402
 
-PASSES = ("gbuffer", "initial", "temporal", "spatial", "glossy", "shading", "validation", "total")
+PASSES = ("gbuffer", "initial", "temporal", "spatial", "glossy", "shading", "denoise", "validation", "total")
+SETUPS = {"1": ("1", 1, False), "2": ("2 threads", 2, False), "twin": ("2 (twin process)", 2, True)}
 
 
 def main():
@@ -32,6 +36,8 @@ def main():
     ap.add_argument("--scale", type=float, default=1.0,
                     help="render at the file's resolution times this (two workers scale better on "
                          "larger images: numpy calls on short arrays hold the GIL for most of their time)")
+    ap.add_argument("--denoise", action="store_true", help="with the engine's denoiser on")
+    ap.add_argument("--workers", default="1,2,twin", help="setups to time: 1, 2 (threads), twin")
     args = ap.parse_args()
 
     load_addon()
@@ -41,14 +47,14 @@ def main():
     scene = export_blend(args.blend, args.scale)
     scene.filter_width = 0.0
     print(f"{Path(args.blend).name} {scene.width}x{scene.height}, {args.mode}, max_bounces "
-          f"{args.bounces}, medians of {args.frames} frames (ms)\n")
-    print("| workers | " + " | ".join(PASSES) + " | PT 1 spp | ReSTIR / PT |")
-    print("|---|" + "---:|" * (len(PASSES) + 2))
+          f"{args.bounces}, denoiser {'on' if args.denoise else 'off'}, medians of {args.frames} frames (ms)\n")
+    print("| workers | " + " | ".join(PASSES) + " | PT 1 spp | ReSTIR / PT | denoise / total |")
+    print("|---|" + "---:|" * (len(PASSES) + 3))
     totals = {}
-    for label, threads, processes in (("1", 1, False), ("2 threads", 2, False), ("2 (twin process)", 2, True)):
+    for label, threads, processes in (SETUPS[k] for k in args.workers.split(",")):
         ctx = RenderContext.build(scene, threads=threads, processes=processes)
         restir = ReSTIRGI()
-        settings = ReSTIRSettings(mode=args.mode, max_bounces=args.bounces, seed=1)
+        settings = ReSTIRSettings(mode=args.mode, max_bounces=args.bounces, seed=1, denoise=args.denoise)
         for f in range(4):
             restir.render_frame(ctx, settings, f)
         rows = {name: [] for name in PASSES}
@@ -60,7 +66,7 @@ def main():
             for f in range(4, 4 + args.frames):
                 restir.render_frame(ctx, settings, f)
                 for name in PASSES:
-                    rows[name].append(restir.last_timings[name])
+                    rows[name].append(restir.last_timings.get(name, 0.0))
                 t0 = time.perf_counter()
                 render_frame(ctx, RenderSettings(samples=1, max_bounces=args.bounces, seed=f))
                 pt.append(time.perf_counter() - t0)
@@ -69,11 +75,13 @@ def main():
         t_pt = statistics.median(pt) * 1000
         totals[label] = (med["total"], t_pt)
         print(f"| {label} | " + " | ".join(f"{med[name]:.0f}" for name in PASSES)
-              + f" | {t_pt:.0f} | {med['total'] / t_pt:.2f}x |")
-    one = totals["1"]
-    print("\nspeed-up over one worker (ReSTIR frame, PT frame): "
-          + ", ".join(f"{label} {one[0] / t[0]:.2f}x / {one[1] / t[1]:.2f}x"
-                      for label, t in totals.items() if label != "1"))
+              + f" | {t_pt:.0f} | {med['total'] / t_pt:.2f}x | "
+              + f"{statistics.median(d / t for d, t in zip(rows['denoise'], rows['total'])) * 100:.0f} % |")
+    one = totals.get("1")
+    if one is not None and len(totals) > 1:
+        print("\nspeed-up over one worker (ReSTIR frame, PT frame): "
+              + ", ".join(f"{label} {one[0] / t[0]:.2f}x / {one[1] / t[1]:.2f}x"
+                          for label, t in totals.items() if label != "1"))
 
 
 if __name__ == "__main__":

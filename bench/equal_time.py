@@ -3,6 +3,7 @@ the scene corpus (example_blends/corpus_*.blend, make_corpus.py).
 
     .venv/bin/python bench/equal_time.py [--scenes room,slit] [--frames 32]
         [--ref-spp 1024] [--modes biased,unbiased] [--cameras still,moving] [--quick]
+        [--denoise] [--no-cycles]
 
 Everything renders as a user renders: the add-on loaded from this tree, the
 file opened with bpy, ``bpy.ops.render.render(animation=True)`` into 32-bit
@@ -14,7 +15,9 @@ removes it (the camera stays at its frame-1 pose). Per scene and camera:
 * reference: Cycles at --ref-spp, fixed seed, of frame N, cached in
   bench/out/refs/ (key: file sha1, scene, camera, frame, size, spp);
 * ReSTIR GI biased / unbiased: frames 1..N with ``warmup_frames`` 1 (frame N is
-  the result of N frames of resampling), MSE of frame N;
+  the result of N frames of resampling), MSE of frame N; with --denoise also
+  with the engine's denoiser (Render Properties > Sampling > Denoise), rows
+  "+ denoiser";
 * our path tracing, 1 spp, and Cycles at 1 and 16 spp (animated seed): frames
   ending at N with the camera held at its frame-N pose, so that every frame is an
   independent render of the reference's view; MSE = median over the frames.
@@ -36,9 +39,12 @@ fit in that time (its row follows), and its MSE is taken to our time as
 1 / time from there (the reference's noise kept as it is).
 
 Writes bench/out/equal_time.md and bench/out/equal_time_<scene>_<camera>.png
-(ReSTIR biased | ReSTIR unbiased | Cycles at our biased frame time | reference);
+(ReSTIR biased | ReSTIR unbiased | Cycles at our biased frame time | reference;
+with --denoise, each ReSTIR picture followed by its denoised one);
 --quick (8 frames, reference 64 spp) writes *_quick.* instead. What Blender
-prints goes to bench/out/blender.log.
+prints goes to bench/out/blender.log. --no-cycles leaves out our path tracing
+and Cycles but the reference (no gains then): the denoiser's rows against
+the raw ones, quickly.
 """
 
 import argparse
@@ -74,6 +80,10 @@ def parse_args():
     ap.add_argument("--quick", action="store_true", help="smoke run: 8 frames, 64-spp references")
     ap.add_argument("--stills", default="16,64",
                     help="warm-up frames of the unbiased still renders (F12) on the still camera; '' for none")
+    ap.add_argument("--denoise", action="store_true",
+                    help="also render each ReSTIR mode with the engine's denoiser on")
+    ap.add_argument("--no-cycles", action="store_true",
+                    help="no path tracing or Cycles rows but the reference (and no gains or stills)")
     args = ap.parse_args()
     args.frames = args.frames or (8 if args.quick else 32)
     args.ref_spp = args.ref_spp or (64 if args.quick else 1024)
@@ -106,12 +116,13 @@ def cycles(spp, seed, animated):
     return setup
 
 
-def ours(mode, warmup=None):
+def ours(mode, warmup=None, denoise=False):
     def setup(scene):
         scene.render.engine = "RESTIR_GI"
         s = scene.restir_gi
         s.mode = mode
         s.samples = 1
+        s.use_denoising = denoise
         if warmup is not None:
             s.warmup_frames = warmup
     return setup
@@ -193,15 +204,26 @@ def run_case(name, camera, args):
     # Ours, ReSTIR GI: frames 1..N with the variant's camera.
     restir = {}
     for label in args.modes:
-        images, seconds, reps = render_frames(blend, list(range(1, n + 1)), ours(MODES[label], 1),
-                                              pin=1 if camera == "still" else None)
-        report(label, reps)
-        restir[label] = (images[n], frame_stats(seconds))
-        print(f"  ReSTIR {label}: {restir[label][1] * 1000:.0f} ms/frame", flush=True)
+        for denoise in (False, True) if args.denoise else (False,):
+            key = f"{label} + denoiser" if denoise else label
+            images, seconds, reps = render_frames(blend, list(range(1, n + 1)), ours(MODES[label], 1, denoise),
+                                                  pin=1 if camera == "still" else None)
+            report(key, reps)
+            restir[key] = (images[n], frame_stats(seconds))
+            print(f"  ReSTIR {key}: {restir[key][1] * 1000:.0f} ms/frame", flush=True)
     h, w = next(iter(restir.values()))[0].shape[:2] if restir else (180, 320)
     ref, ref_s, cached = reference(blend, name, camera, args, (w, h))
     if cached:
         print(f"  reference: cached ({ref_s:.0f} s when rendered)", flush=True)
+    if args.no_cycles:
+        for label, (img, t) in restir.items():
+            e = mse(img, ref)
+            ratio, black = brightness(img, ref)
+            rows.append([f"ReSTIR {label}", t, e, None, None, ratio, black])
+            pictures[label] = img
+        rows.append([f"reference {args.ref_spp} spp", ref_s, float("nan"), None, None, 1.0, None])
+        pictures["reference"] = ref
+        return rows, pictures
 
     # Our path tracing, 1 spp, and Cycles at 1 and 16 spp: frames ending at N.
     def series(setup, count, label):
@@ -288,7 +310,7 @@ def table(results, args):
     summary = {}
     for (_name, camera), rows in results.items():
         for method, _t, _e, g_pt, g_c, _r, _b in rows:
-            if method.startswith("ReSTIR"):
+            if method.startswith("ReSTIR") and g_pt is not None:
                 summary.setdefault((method, camera), []).append((g_pt, g_c))
     if summary:
         lines += ["", "| method | camera | scenes | geo. mean gain vs PT | geo. mean gain vs Cycles |",
@@ -312,7 +334,8 @@ def main():
             print(f"{name} / {camera}", flush=True)
             rows, pictures = run_case(name, camera, args)
             results[(name, camera)] = rows
-            strip = [pictures[k] for k in ("biased", "unbiased", "cycles", "reference") if k in pictures]
+            order = [k for m in ("biased", "unbiased") for k in (m, f"{m} + denoiser")] + ["cycles", "reference"]
+            strip = [pictures[k] for k in order if k in pictures]
             png = OUT / f"equal_time_{name}_{camera}{suffix}.png"
             write_png(png, np.concatenate(strip, axis=1))
     text = table(results, args)
