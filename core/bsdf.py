@@ -56,6 +56,15 @@ class BSDFParams:
     # as opposed to Multiscatter GGX): at_view puts back the energy single
     # scattering loses only on the rest. None: every row is multiscatter.
     spec_ss: np.ndarray = None
+    # (N,) share of the sheen lobe that layers over nothing (a Sheen BSDF
+    # node's): at_view dims the other lobes by the rest only. None: all of it
+    # layers (the Principled BSDF's sheen).
+    sheen_free: np.ndarray = None
+    # Cycles' Ashikhmin velvet (the Sheen BSDF node's Ashikhmin
+    # distribution): colour weight (N, 3) and sigma (N,) (None: no row has
+    # one). Sampled with the diffuse lobe's cosine share.
+    velvet: np.ndarray = None
+    velvet_sigma: np.ndarray = None
 
     def subset(self, index):
         index = np.asarray(index)
@@ -86,7 +95,7 @@ def without_lobes(p, hidden):
         if v is not None:
             setattr(p, name, (v * (keep[:, col:col + 1] if v.ndim == 2 else keep[:, col])).astype(np.float32))
 
-    for name in ("diffuse", "layered", "sheen"):
+    for name in ("diffuse", "layered", "sheen", "velvet"):
         zero(name, 0)
     for name in ("f0", "glass_r"):
         zero(name, 1)
@@ -170,16 +179,21 @@ def at_view(params, wo):
     return params
 
 
-def lobe_params(diffuse, f0, roughness, f90=None, glass=None):
+def lobe_params(diffuse, f0, roughness, f90=None, glass=None, velvet=None):
     """BSDFParams from lobe weights: Lambert albedo (N, 3), GGX f0 (N, 3),
     roughness (N,), and the reflectance at grazing incidence f90 (N, 3; None:
     white); glass: (reflection weight (N, 3), refraction weight (N, 3), IOR
-    (N,), roughness (N,)) of a glass lobe, or None.
+    (N,), roughness (N,)) of a glass lobe, or None; velvet: (colour (N, 3),
+    sigma (N,)) of an Ashikhmin velvet lobe, or None.
 
-    Lobes are picked in proportion to their share of the luminance; between
-    diffuse and specular alone the specular share is kept within [0.1, 0.9]."""
+    Lobes are picked in proportion to their share of the luminance (the
+    velvet's counts with the diffuse lobe's, whose cosine samples serve
+    both); between diffuse and specular alone the specular share is kept
+    within [0.1, 0.9]."""
     ws = luminance(f0)
     wd = luminance(diffuse)
+    if velvet is not None:
+        wd = wd + luminance(velvet[0])
     wg = 0.0
     if glass is not None:
         wg = np.maximum(luminance(glass[0]), luminance(glass[1]))
@@ -201,6 +215,10 @@ def lobe_params(diffuse, f0, roughness, f90=None, glass=None):
         p.alpha_g = np.array(np.maximum(np.broadcast_to(glass[3], (n,)) ** 2, ALPHA_MIN), np.float32)
         p.p_glass = np.where(total > 0, wg / safe, 0.0).astype(np.float32)
         p.eta = p.ior.copy()
+    if velvet is not None:
+        n = len(p.alpha)
+        p.velvet = np.ascontiguousarray(np.broadcast_to(velvet[0], (n, 3)), np.float32)
+        p.velvet_sigma = np.array(np.broadcast_to(velvet[1], (n,)), np.float32)
     return p
 
 
@@ -305,6 +323,8 @@ def _lobes(params, wo, wi, want_f, want_pdf):
     if params.has_sheen:
         from .sheen import add_lobe   # noqa: PLC0415
         add_lobe(params, wo, wi, p_sheen, f, p)
+    if want_f and params.velvet is not None:
+        _velvet_lobe(params, wo, wi, f)
     spec = (p_spec > 0) & wi_up
     if not spec.any():
         return f, p
@@ -379,6 +399,35 @@ def _glass_lobe(params, wo, wi, p_glass, f, p):
         scatter_add(f, rows, (gf * tint).astype(np.float32))
     if p is not None:
         p[rows] = np.take(p, rows) + np.take(p_glass, rows) * gp
+
+
+def velvet_f(wo, wi, sigma):
+    """(N,) Cycles' Ashikhmin velvet (bsdf_ashikhmin_velvet.h; Ashikhmin,
+    Premoze and Shirley 2000): f = D G / (4 cos_o cos_i) without the cosine,
+    D = exp(-cot^2(h) / sigma^2) / (pi sigma^2 sin^4(h)) an inverted
+    Gaussian of the half vector h's angle to the normal, G = min(1,
+    2 cos(h) cos_o / (h . wo), 2 cos(h) cos_i / (h . wo)); sigma at least
+    0.01. Zero unless both directions lie above the surface."""
+    cos_o, cos_i = wo[:, 2], wi[:, 2]
+    h = _half(wo, wi)
+    cos_nh = h[:, 2]
+    cos_hi = np.abs(dot(wo, h))
+    ok = (cos_o > 0) & (cos_i > 0) & (np.abs(cos_nh) < 1.0 - 1e-5) & (cos_hi > 1e-5)
+    ratio = np.maximum(cos_nh / np.where(ok, cos_hi, 1.0), 1e-5)
+    g = np.minimum(1.0, np.minimum(2.0 * ratio * cos_o, 2.0 * ratio * cos_i))
+    sin2 = np.where(ok, 1.0 - cos_nh * cos_nh, 1.0)
+    inv_s2 = 1.0 / np.maximum(np.asarray(sigma, np.float64), 0.01) ** 2
+    d = np.exp(-(cos_nh * cos_nh / sin2) * inv_s2) * inv_s2 * INV_PI / (sin2 * sin2)
+    f = 0.25 * d * g / np.maximum(cos_o * cos_i, 1e-12)
+    return np.where(ok, f, 0.0).astype(np.float32)
+
+
+def _velvet_lobe(params, wo, wi, f):
+    """Add the velvet lobe's f into f (in place), on the rows that have one."""
+    rows = np.nonzero(row_max(params.velvet) > 0)[0]
+    if len(rows):
+        v = velvet_f(gather(wo, rows), gather(wi, rows), np.take(params.velvet_sigma, rows))
+        scatter_add(f, rows, scale(gather(params.velvet, rows), v))
 
 
 def _p_sheen(params, wo):

@@ -50,6 +50,8 @@ class SceneShading:
                     _add_sheen(table, [i], row)
                 if row.spec_ss is not None:
                     _add_single_scatter(table, [i], row)
+                if row.velvet is not None:
+                    _add_velvet(table, [i], row)
                 self.emission[i] = closure.get("emission", 1)[0]
                 self.transparent_row[i] = _pass_probability(closure, 1)[0]
                 self.holdout_row[i] = np.clip(closure.get("holdout", 1)[0], 0, 1)
@@ -104,9 +106,12 @@ def params_of(closure, n):
     if "transmission" in closure.fields or "trans_refl" in closure.fields:
         glass = (closure.get("trans_refl", n), closure.get("transmission", n),
                  closure.averaged("ior", n, 1.5), closure.averaged("trans_rough", n, 0.0))
+    velvet = None
+    if "velvet" in closure.fields:
+        velvet = (closure.get("velvet", n), closure.averaged("velvet_sigma", n, 0.5))
     p = bsdf.lobe_params(closure.get("diffuse", n) + layered, closure.get("specular", n),
                          closure.averaged("spec_rough", n, DEFAULT_ROUGHNESS),
-                         closure.get("spec_edge", n), glass)
+                         closure.get("spec_edge", n), glass, velvet)
     p.layered = layered
     p.layer_f0 = closure.averaged("layer_f0", n, 0.0)
     if "spec_ss" in closure.fields:
@@ -114,6 +119,8 @@ def params_of(closure, n):
     if "sheen" in closure.fields:
         p.sheen = closure.get("sheen", n)
         p.sheen_rough = closure.averaged("sheen_rough", n, 0.5)
+        if "sheen_free" in closure.fields:
+            p.sheen_free = closure.averaged("sheen_free", n, 0.0)
     return p
 
 
@@ -160,6 +167,8 @@ def surface_params(scene, surf, camera_ray=False):
             _add_sheen(params, rows, p)
         if p.spec_ss is not None or params.spec_ss is not None:
             _add_single_scatter(params, rows, p)
+        if p.velvet is not None or params.velvet is not None:
+            _add_velvet(params, rows, p)
         params.alpha[rows] = p.alpha
         params.p_spec[rows] = p.p_spec
         if closure.normal_sum is not None:
@@ -357,6 +366,21 @@ def _add_sheen(params, rows, p):
         params.sheen_rough = np.full(len(params.alpha), 0.5, np.float32)
     scatter(params.sheen, np.asarray(rows), p.sheen)
     params.sheen_rough[rows] = p.sheen_rough
+    if p.sheen_free is not None or params.sheen_free is not None:
+        if params.sheen_free is None:
+            params.sheen_free = np.zeros(len(params.alpha), np.float32)
+        params.sheen_free[rows] = 0.0 if p.sheen_free is None else p.sheen_free
+
+
+def _add_velvet(params, rows, p):
+    """Scatter the velvet lobe of rows' parameters p (None: none) into
+    params, creating its fields (no velvet elsewhere) on first use."""
+    if params.velvet is None:
+        params.velvet = np.zeros((len(params.alpha), 3), np.float32)
+        params.velvet_sigma = np.full(len(params.alpha), 0.5, np.float32)
+    rows = np.asarray(rows)
+    scatter(params.velvet, rows, 0.0 if p.velvet is None else p.velvet)
+    params.velvet_sigma[rows] = 0.5 if p.velvet is None else p.velvet_sigma
 
 
 def valid_reflection_normal(ng, wo, n):

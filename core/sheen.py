@@ -1,4 +1,5 @@
-"""The Principled BSDF's sheen lobe: a linearly transformed cosine (LTC).
+"""The sheen lobe (the Principled BSDF's, and the Sheen BSDF node's
+Microfiber): a linearly transformed cosine (LTC).
 
 Cycles' Principled sheen (since 4.0) follows Zeltner, Burley and Chiang 2022,
 "Practical Multiple-Scattering Sheen Using Linearly Transformed Cosines": a
@@ -104,12 +105,16 @@ def ltc_sample(wo, a, b, u):
 def at_view(params, cos):
     """The sheen layer seen from wo: its albedo R x colour becomes the lobe's
     weight, every lobe below keeps 1 - its largest channel (Cycles' layering
-    of Principled v2), and the sheen gets its share of the lobe choice."""
+    of Principled v2; a Sheen BSDF node's share, ``sheen_free``, lies over
+    nothing), and the sheen gets its share of the lobe choice."""
     a, b, r = ltc_terms(params.sheen_rough, cos)
     albedo = scale(params.sheen, r).astype(np.float32)
-    keep = np.clip(1.0 - row_max(albedo), 0.0, 1.0).astype(np.float32)
+    layer = albedo if params.sheen_free is None else scale(albedo, 1.0 - params.sheen_free)
+    keep = np.clip(1.0 - row_max(layer), 0.0, 1.0).astype(np.float32)
     rest = luminance(params.diffuse) + luminance(params.f0)
-    for name in ("diffuse", "f0", "f90", "layered", "glass_r", "glass_t"):
+    if params.velvet is not None:
+        rest = rest + luminance(params.velvet)
+    for name in ("diffuse", "f0", "f90", "layered", "glass_r", "glass_t", "velvet"):
         if getattr(params, name) is not None:
             setattr(params, name, scale(getattr(params, name), keep).astype(np.float32))
     if params.has_glass:

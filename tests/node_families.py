@@ -379,6 +379,42 @@ def sheen(scene):
         "Sheen Tint": (0.6, 0.7, 1.0, 1)}))
 
 
+def _sheen_node(name, distribution, color, roughness, under=None, mix=None):
+    """A Sheen BSDF node of its own; under: the colour of a Diffuse BSDF it
+    is added to; mix: the factor of a Mix Shader of that Diffuse and it."""
+    mat, tree, out = _new_material(name)
+    node = tree.nodes.new("ShaderNodeBsdfSheen")
+    node.distribution = distribution
+    node.inputs["Color"].default_value = (*color, 1.0)
+    node.inputs["Roughness"].default_value = roughness
+    shader = node.outputs[0]
+    if under is not None:
+        diffuse = tree.nodes.new("ShaderNodeBsdfDiffuse")
+        diffuse.inputs["Color"].default_value = (*under, 1.0)
+        both = tree.nodes.new("ShaderNodeAddShader" if mix is None else "ShaderNodeMixShader")
+        first = 0 if mix is None else 1
+        if mix is not None:
+            both.inputs["Fac"].default_value = mix
+        tree.links.new(diffuse.outputs[0], both.inputs[first])
+        tree.links.new(shader, both.inputs[first + 1])
+        shader = both.outputs[0]
+    tree.links.new(shader, out.inputs["Surface"])
+    return mat
+
+
+def sheen_node(scene):
+    """The Sheen BSDF node (Velvet before 4.0): Microfiber added to a dark
+    diffuse (which it does not dim, unlike the Principled sheen), Ashikhmin
+    (Cycles' velvet) on its own, and a Microfiber mixed with grey on the
+    floor, seen at grazing."""
+    _spheres([(0.45, (-0.4, 0.25), _sheen_node("Microfiber", "MICROFIBER", (0.9, 0.35, 0.5), 0.4,
+                                               under=(0.05, 0.05, 0.08))),
+              (0.35, (0.45, -0.3), _sheen_node("Velvet", "ASHIKHMIN", (0.5, 0.7, 1.0), 0.35))])
+    _assign(["Floor"], _sheen_node("SheenFloor", "MICROFIBER", (0.8, 0.9, 0.6), 0.7, under=(0.4, 0.4, 0.4),
+                                   mix=0.5))
+    _assign(["BackWall"], _sheen_node("VelvetWall", "ASHIKHMIN", (0.9, 0.8, 0.7), 0.8, under=(0.3, 0.3, 0.3)))
+
+
 def anisotropic(scene):
     """Principled Anisotropic on metal spheres (the default tangent, around
     the object's z axis), approximated by the isotropic GGX of the same
@@ -616,4 +652,5 @@ def gltf_legacy(scene):
 
 FAMILIES = {"image": image, "procedural": procedural, "brick": brick, "noise": noise, "shaders": shaders, "normals": normals,
             "attributes": attributes, "emission": emission, "glass": glass, "alpha": alpha,
-            "hdri": hdri, "sheen": sheen, "anisotropic": anisotropic, "gltf_legacy": gltf_legacy}
+            "hdri": hdri, "sheen": sheen, "anisotropic": anisotropic, "gltf_legacy": gltf_legacy,
+            "sheen_node": sheen_node}

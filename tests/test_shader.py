@@ -444,3 +444,28 @@ def test18_light_falloff_outside_lights_is_at_distance_one():
     got, warned = falloff("Constant", smooth=2.0, ray_length=[0.5, 1.0, 4.0])
     d = np.float32([0.5, 1.0, 4.0])
     assert np.allclose(got, 3.0 * d ** 2 * d ** 2 / (2.0 + d ** 2)) and not warned
+
+
+def test19_sheen_node_per_hit_equals_constant():
+    """The Sheen BSDF node (Ashikhmin velvet and Microfiber) in a graph that
+    varies over the surface gives, at each hit, the parameters of the same
+    graph made constant with that hit's values."""
+    from core.materials import params_of
+    xy = np.float32([[0.7, 0.2], [0.9, 0.6], [0.2, 0.9]])
+    for distribution in ("ASHIKHMIN", "MICROFIBER"):
+        def graph(fac):
+            nodes = [Node("UVMAP"), Node("SEPXYZ", {"Vector": Link(0, "UV")}),
+                     Node("BSDF_SHEEN", {"Color": (0.9, 0.5, 0.3), "Roughness": 0.4},
+                          {"distribution": distribution}),
+                     Node("BSDF_DIFFUSE", {"Color": (0.2, 0.3, 0.4)}),
+                     Node("MIX_SHADER", {"Fac": fac, "Shader": Link(2, "BSDF"), "Shader_001": Link(3, "BSDF")})]
+            return ShaderGraph(nodes=nodes, output=Link(4, "Shader"))
+        scene = _quad_scene(graph(Link(1, "X")))
+        per_hit = surface_params(scene, _hits(scene, xy))
+        for i, x in enumerate(xy[:, 0]):
+            one = params_of(CompiledShader(graph(float(x))).closure(ONE), 1)
+            for name in ("diffuse", "p_spec", "velvet", "velvet_sigma", "sheen", "sheen_rough", "sheen_free"):
+                a, b = getattr(per_hit, name), getattr(one, name)
+                assert (a is None) == (b is None), (distribution, name)
+                if a is not None:
+                    np.testing.assert_allclose(a[i], b[0], rtol=1e-5, atol=1e-7, err_msg=(distribution, name))

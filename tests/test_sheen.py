@@ -194,3 +194,67 @@ def test08_batch_equals_one_at_a_time(rng):
         assert np.allclose(w1, s_wi[one], atol=1e-6)
         assert np.allclose(f1, s_f[one], rtol=1e-5, atol=1e-7)
         assert np.allclose(p1, s_pdf[one], rtol=1e-5, atol=1e-7)
+
+
+# --- the Sheen BSDF node ---------------------------------------------------------------
+
+def test09_sheen_node_dims_nothing_below(rng):
+    """The Sheen BSDF node's Microfiber is the same lobe, but on top of
+    nothing: a diffuse added to it keeps its whole albedo (the Principled
+    sheen's layering dims it by the sheen's albedo)."""
+    base = Closure.bsdf(diffuse=np.full(3, 0.5, np.float32))
+    wo = direction(0.4)
+    layered = params(closure(0.5) + base, 1, wo)
+    node = params(Closure.bsdf(sheen=np.ones(3, np.float32), sheen_rough=0.5, sheen_free=np.float32(1)) + base,
+                  1, wo)
+    assert np.allclose(node.diffuse, 0.5) and (layered.diffuse < 0.5).all()
+    assert np.allclose(node.sheen, layered.sheen)        # the same lobe
+    # Half and half: dimmed by half the sheen's albedo.
+    half = params(closure(0.5).scaled(0.5) + Closure.bsdf(sheen=np.full(3, 0.5, np.float32), sheen_rough=0.5,
+                                                         sheen_free=np.float32(1)) + base, 1, wo)
+    assert np.allclose(0.5 - half.diffuse, (0.5 - layered.diffuse) / 2, rtol=1e-5)
+
+
+def _velvet_scalar(wo, wi, sigma):
+    """Cycles' bsdf_ashikhmin_velvet_eval, one pair at a time (its wi is the
+    view, here wo), divided by the light's cosine."""
+    cos_view, cos_light = wo[2], wi[2]
+    if not (cos_view > 0 and cos_light > 0):
+        return 0.0
+    h = (wo + wi) / np.linalg.norm(wo + wi)
+    cos_nh, cos_hi = h[2], abs(wo @ h)
+    if not (abs(cos_nh) < 1 - 1e-5 and cos_hi > 1e-5):
+        return 0.0
+    r = max(cos_nh / cos_hi, 1e-5)
+    inv_s2 = 1 / max(sigma, 0.01) ** 2
+    sin2 = 1 - cos_nh * cos_nh
+    d = np.exp(-(cos_nh * cos_nh / sin2) * inv_s2) * inv_s2 / np.pi / (sin2 * sin2)
+    g = min(1.0, 2 * r * cos_light, 2 * r * cos_view)
+    return 0.25 * d * g / cos_view / cos_light
+
+
+def test10_ashikhmin_is_cycles_velvet(rng):
+    """The Sheen node's Ashikhmin distribution: Cycles' Ashikhmin velvet, by
+    its formula (and reciprocal); its cosine samples (the diffuse lobe's
+    share) estimate the albedo a uniform quadrature of f cos gives."""
+    n = 400
+    wo, wi = (rng.normal(size=(n, 3)) for _ in range(2))
+    wo[:, 2], wi[:, 2] = np.abs(wo[:, 2]), np.where(np.arange(n) < 20, -1, 1) * np.abs(wi[:, 2])
+    wo, wi = ((v / np.linalg.norm(v, axis=1, keepdims=True)).astype(np.float32) for v in (wo, wi))
+    sigma = rng.uniform(0.0, 1.0, n).astype(np.float32)
+    got = bsdf.velvet_f(wo, wi, sigma)
+    want = [_velvet_scalar(wo[i].astype(np.float64), wi[i].astype(np.float64), float(sigma[i])) for i in range(n)]
+    np.testing.assert_allclose(got, want, rtol=2e-4, atol=1e-6)
+    np.testing.assert_allclose(bsdf.velvet_f(wi, wo, sigma), got, rtol=2e-4, atol=1e-6)
+    for rough, cos_wo in ((0.35, 0.2), (0.6, 0.5), (1.0, 0.95)):
+        c = Closure.bsdf(velvet=np.array([0.9, 0.6, 0.3], np.float32), velvet_sigma=rough)
+        p, wo_b, s_wi, s_f, s_pdf = draw(c, direction(cos_wo), rng)
+        est = np.where((s_pdf > 0)[:, None], s_f * (s_wi[:, 2] / np.where(s_pdf > 0, s_pdf, 1))[:, None], 0)
+        u = rng.random((N, 2))
+        z = u[:, 0]
+        r = np.sqrt(np.maximum(1 - z * z, 0))
+        uni = np.stack([r * np.cos(2 * np.pi * u[:, 1]), r * np.sin(2 * np.pi * u[:, 1]), z], 1).astype(np.float32)
+        quad = bsdf.evaluate(p, wo_b, uni) * (z * 2 * np.pi)[:, None]
+        a, b = est.mean(axis=0), quad.mean(axis=0)
+        err = np.hypot(est.std(axis=0), quad.std(axis=0)) / np.sqrt(N)
+        assert (np.abs(a - b) < 4.5 * err).all() and (a > 0.02).all(), (rough, cos_wo, a, b, err)

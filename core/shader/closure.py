@@ -25,7 +25,10 @@ arrays:
 - ``sheen``: weight x tint of the sheen layer on top (Principled sheen,
   core/sheen.py), with weight-averaged ``sheen_rough``; at the viewing angle
   it takes its albedo from every other lobe of the closure (core/bsdf.py
-  ``at_view``).
+  ``at_view``), except the share ``sheen_free`` from a Sheen BSDF node,
+  which lies on top of nothing.
+- ``velvet``: the colour of a Sheen BSDF node of Ashikhmin distribution
+  (Cycles' Ashikhmin velvet), with weight-averaged ``velvet_sigma``.
 - ``transparent``: the share of light passing straight through (Transparent
   BSDF, Principled Alpha).
 - ``translucent``: Lambert transmission (Translucent BSDF).
@@ -42,13 +45,14 @@ stays a handful of numbers until ``Closure.lobes`` spreads it over the hits.
 import numpy as np
 
 COLOR_FIELDS = ("diffuse", "layered", "specular", "spec_edge", "transmission", "trans_refl",
-                "transparent", "translucent", "emission", "sheen")
+                "transparent", "translucent", "emission", "sheen", "velvet")
 # Scalars summed with a weight and divided by it at the end: name -> (weight, lobe it averages over).
 AVERAGED = {"spec_rough": ("spec_w", "specular"), "spec_ss": ("spec_w", "specular"),
             "trans_rough": ("trans_w", "transmission"),
             "ior": ("trans_w", "transmission"), "layer_f0": ("layer_w", "layered"),
-            "sheen_rough": ("sheen_w", "sheen")}
-BSDF_LOBES = ("diffuse", "layered", "specular", "transmission", "translucent", "sheen")
+            "sheen_rough": ("sheen_w", "sheen"), "sheen_free": ("sheen_w", "sheen"),
+            "velvet_sigma": ("velvet_w", "velvet")}
+BSDF_LOBES = ("diffuse", "layered", "specular", "transmission", "translucent", "sheen", "velvet")
 
 
 def _f32(x):

@@ -34,6 +34,10 @@ The Principled BSDF follows the layering of Cycles' Principled v2
   angle, not only the layers under it (the lobes are summed before the view
   is known).
 - Subsurface scattering renders as diffuse reflection of the base colour.
+
+The Sheen BSDF node (Microfiber) is the same sheen lobe on its own: it dims
+nothing below it, as in Cycles, where only the Principled BSDF layers its
+sheen over the other lobes.
 """
 
 import numpy as np
@@ -157,6 +161,19 @@ def glossy_bsdf(inp, geom, n, sh):
     color = np.clip(inp.color("Color", (0.8, 0.8, 0.8)), 0, None)
     return {"BSDF": _bsdf(inp, geom, specular=color, spec_edge=color,
                           spec_rough=np.clip(inp.float("Roughness", 0.5), 0, 1), spec_ss=_single_scatter(inp))}
+
+
+@node("BSDF_SHEEN")
+def sheen_bsdf(inp, geom, n, sh):
+    """The Sheen BSDF node (Velvet before Blender 4.0): Microfiber is the
+    Principled BSDF's sheen lobe (core/sheen.py) of its colour and roughness,
+    on its own (nothing below it to dim); Ashikhmin is Cycles' Ashikhmin
+    velvet of sigma = Roughness (core/bsdf.py)."""
+    color = np.clip(inp.color("Color", (0.8, 0.8, 0.8)), 0, None)
+    rough = np.clip(inp.float("Roughness", 0.5), 0, 1)
+    if inp.prop("distribution", "MICROFIBER") == "ASHIKHMIN":
+        return {"BSDF": _bsdf(inp, geom, velvet=color, velvet_sigma=rough)}
+    return {"BSDF": _bsdf(inp, geom, sheen=color, sheen_rough=rough, sheen_free=np.float32(1))}
 
 
 @node("BSDF_GLASS")
