@@ -369,9 +369,12 @@ class ReSTIRGI:
                 shaded[a:b] = rows
             color = rows[:, 0:3] + rows[:, 3:6] + rows[:, 14:17]
             spent("shading", t)
-            return (None if not settings.spatial else spatial), visibility, color
+            # Pixels a holdout cuts into are left out of the denoiser (it would
+            # blur their neighbours' light into the hole).
+            cut = (keep < 1) if settings.denoise else None
+            return (None if not settings.spatial else spatial), visibility, color, cut
 
-        spatial, visibility, color = ctx.workers.map_into(reuse, n, written=(shaded,))
+        spatial, visibility, color, cut = ctx.workers.map_into(reuse, n, written=(shaded,))
         if spatial is None:
             spatial = temporal      # without spatial reuse the two are one
         noisy = None
@@ -385,8 +388,8 @@ class ReSTIRGI:
                     spent("denoise", t)
 
             with stage("denoising"):
-                noisy, color = color, svgf(ctx.workers, shaded, img.depth, img.valid, img.width, img.height,
-                                           timed=denoising)
+                noisy, color = color, svgf(ctx.workers, shaded, img.depth, img.valid & ~cut, img.width,
+                                           img.height, timed=denoising, poll=ctx.accel.poll)
         frame_acc = Accumulation(shaded)
         acc = frame_acc if accumulating else None
         direct_total, indirect, albedo, normal, alpha = frame_acc.direct, frame_acc.indirect, \

@@ -80,12 +80,14 @@ def frame_moments(indirect, albedo):
     return np.stack([lum, lum * lum], axis=1)
 
 
-def denoise(workers, data, depth, valid, width, height, iterations=ITERATIONS, timed=None):
+def denoise(workers, data, depth, valid, width, height, iterations=ITERATIONS, timed=None, poll=None):
     """(P, 3) float32: the filtered image of the running means ``data`` (P,
     accumulation.COLUMNS + MOMENTS), from this frame's view depth (P,) and
-    valid (P,) bool. Pixels that see no surface this frame keep their means.
-    timed: a context manager factory called around each range's work (the
-    frame's timings), or None."""
+    valid (P,) bool. Pixels that see no surface this frame (or that valid
+    leaves out) keep their means. timed: a context manager factory called
+    around each range's work (the frame's timings), or None; poll: called
+    before every pass (Accel.poll: where an interruptible frame, the
+    viewport's, may be abandoned), or None."""
     n = width * height
     if n == 0:
         return np.zeros((0, 3), np.float32)
@@ -95,6 +97,9 @@ def denoise(workers, data, depth, valid, width, height, iterations=ITERATIONS, t
     shape = (height, width)
 
     def run(fn):
+        if poll is not None:
+            poll()
+
         def part(a, b):
             if timed is None:
                 return fn(a, b)
