@@ -55,14 +55,15 @@ class RestirGISceneSettings(bpy.types.PropertyGroup):
                     "lighting start over; 1 = off)",
     )
     use_denoising: BoolProperty(
-        name="Denoise", default=False,
-        description="ReSTIR GI: filter each frame's running means with the engine's own denoiser "
-                    "(edge-avoiding, guided by depth, normals and each pixel's variance); the image "
-                    "before it is kept in the Noisy Image pass",
+        name="Denoise", default=True,
+        description="ReSTIR GI: filter the indirect light of each frame with the engine's own "
+                    "denoiser (edge-avoiding, guided by depth, normals, albedo and each pixel's "
+                    "variance over its history); the image before it is kept in the Noisy Image pass",
     )
     use_preview_denoising: BoolProperty(
         name="Viewport Denoise", default=True,
-        description="ReSTIR GI: filter the rendered viewport's frames with the engine's own denoiser",
+        description="ReSTIR GI: filter the indirect light of the rendered viewport's frames with the "
+                    "engine's own denoiser",
     )
     initial_sampling: EnumProperty(
         name="Initial Sampling", items=INITIAL_SAMPLING_ITEMS, default="COSINE",

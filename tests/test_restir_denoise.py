@@ -241,7 +241,29 @@ def test07_the_running_means_are_the_same_bits_with_the_denoiser(ctx, mode):
         assert np.isfinite(b.color).all() and (b.color >= 0).all()
 
 
-def test08_unbiased_mean_is_kept(ctx, reference):
+def test08_holdouts_stay_cut_out():
+    """Half of the back wall (one of its two triangles) is a holdout object:
+    its pixels stay black, the filter blurs none of the other half's light
+    into them."""
+    scene = cornell_box("area", 48, 48)
+    scene.object_ids = np.asarray(scene.object_ids).copy()
+    scene.object_ids[4] = 1
+    scene.object_holdout = np.array([False, True])
+    ctx = RenderContext.build(scene)
+    try:
+        restir = ReSTIRGI()
+        settings = ReSTIRSettings(seed=2, max_bounces=2, denoise=True)
+        for f in range(4):
+            out = restir.render_frame(ctx, settings, f)
+    finally:
+        ctx.close()
+    hole = out.alpha == 0         # (alpha: coverage less holdouts, over the frames)
+    assert 0.05 < hole.mean() < 0.5 and (out.noisy[hole] == 0).all()
+    assert (out.color[hole] == 0).all()
+    assert (out.color[~hole].max(axis=1) > 0).mean() > 0.9
+
+
+def test09_unbiased_mean_is_kept(ctx, reference):
     """Unbiased stills on a static scene, over seeds: the temporal part (the
     image before the filter) has the path tracer's mean, per image and per
     block; the filtered image's mean is within the confidence interval of
@@ -266,14 +288,17 @@ def test08_unbiased_mean_is_kept(ctx, reference):
 
 # --------------------------------------------------------------- through Blender
 
-def test09_settings_reach_the_renderer(addon):
+def test10_settings_reach_the_renderer(addon):
     from addon_util import fresh
     final, draw, vp = addon.restir_addon.final, addon.restir_addon.viewport_draw, addon.restir_addon.viewport
     scene = fresh(mode="RESTIR_BIASED")
     s = scene.restir_gi
-    assert not s.use_denoising and s.use_preview_denoising      # final renders off, the viewport on
-    assert not final.restir_settings(scene).denoise
+    assert s.use_denoising and s.use_preview_denoising      # on by default in both
+    assert final.restir_settings(scene).denoise
     assert draw.session_settings(scene)["restir"].denoise
+    s.use_denoising, s.use_preview_denoising = False, True
+    assert not final.restir_settings(scene).denoise
+    assert draw.session_settings(scene)["restir"].denoise     # each toggle on its own
     s.use_denoising, s.use_preview_denoising = True, False
     assert final.restir_settings(scene).denoise
     assert not draw.session_settings(scene)["restir"].denoise
@@ -287,7 +312,7 @@ def test09_settings_reach_the_renderer(addon):
 
 @pytest.mark.parametrize("mode,denoise", [("RESTIR_BIASED", True), ("RESTIR_UNBIASED", True),
                                           ("RESTIR_BIASED", False), ("PATH", True)])
-def test10_passes_in_the_multilayer_exr(addon, tmp_path, mode, denoise):
+def test11_passes_in_the_multilayer_exr(addon, tmp_path, mode, denoise):
     """Noisy Image when denoised (ReSTIR GI modes), Denoising Normal always:
     camera space as Cycles writes it (a plane facing the camera: 0, 0, -1)."""
     from addon_util import add_mesh, camera, fresh, read_passes, rect, render_exr, world
