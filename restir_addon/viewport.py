@@ -314,13 +314,15 @@ class ViewportSession(SceneSync):
         seconds = time.perf_counter() - t0
         color = np.nan_to_num(np.asarray(color, np.float64), nan=0.0, posinf=0.0, neginf=0.0)
         self._accum = color if self._accum is None else self._accum + color
+        # The frame is counted before _accum_n grows: a reader that sees the
+        # session converged then also sees every frame it took.
+        self.work.frames += 1
         self._accum_n += 1
         self._frames_since_edit += 1
         self.frame = to_rgba((self._accum / self._accum_n).reshape(h, w, 3))
         self.frame_generation = self._applied_generation
         self.frame_serial += 1
         self.last_frame_seconds = seconds
-        self.work.frames += 1
         per_pixel = seconds / max(1, w * h)
         self._pixel_seconds = per_pixel if self._pixel_seconds is None else (
             0.5 * self._pixel_seconds + 0.5 * per_pixel)
