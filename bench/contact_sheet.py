@@ -4,7 +4,8 @@
 
 Each family of tests/node_families.py (image textures, procedural textures and
 converters, shader mixing, bump and normal maps, attributes, emission, an HDRI
-world) is rendered by both engines, twice each with independent seeds. Prints
+world), then each feature of tests/feature_scenes.py (panoramic cameras, ...),
+is rendered by both engines, twice each with independent seeds. Prints
 the mean luminance of each, their ratio and the block chi statistic (near 1
 when the engines agree up to noise; tests/test_nodes_vs_cycles.py asserts the
 same at 64x64). Writes bench/out/contact_sheet.png: one row per family, ours
@@ -31,15 +32,17 @@ def main():
     ap.add_argument("--size", type=int, default=128)
     ap.add_argument("--samples", type=int, default=256)
     ap.add_argument("--bounces", type=int, default=8)
-    ap.add_argument("--only", nargs="*", help="families to render (default: all)")
+    ap.add_argument("--only", nargs="*", help="families or features to render (default: all)")
     args = ap.parse_args()
     load_addon()
     from blender_util import compare_with_cycles, open_example, set_resolution
+    from feature_scenes import FEATURES
     from node_families import FAMILIES
     from restir_gi.core.film import write_png
 
     OUT.mkdir(parents=True, exist_ok=True)
-    names = args.only or list(FAMILIES)
+    builders = {**FAMILIES, **FEATURES}
+    names = args.only or list(builders)
     print(f"Cornell box {args.size}x{args.size}, {args.samples} spp, {args.bounces} bounces, "
           "two renders per engine")
     print("| family | ours | Cycles | ratio | block chi | seconds (4 renders) |")
@@ -48,7 +51,7 @@ def main():
     for name in names:
         scene = open_example("cornell_box.blend")
         set_resolution(scene, args.size, args.size)
-        FAMILIES[name](scene)
+        builders[name](scene)
         t0 = time.perf_counter()
         r = compare_with_cycles(scene, args.samples, args.bounces, clamp=1.0)
         print(f"| {name} | {r['ours_mean']:.4f} | {r['cycles_mean']:.4f} | {r['ratio']:.4f} "

@@ -10,6 +10,7 @@ from dataclasses import replace
 
 import numpy as np
 
+from . import panorama
 from .rows import matmul3
 from .sampling import Distribution1D, square_to_concentric_disk
 
@@ -80,8 +81,11 @@ def crop(camera, width, height, x0, y0, w, h):
     of a width x height image as a w x h image of its own (a render region):
     the same pixel size, the sensor fitted to the new width, the shift moved
     to the rectangle's centre."""
-    size, view = pixel_size(camera, width, height)
     w, h = max(1, int(w)), max(1, int(h))
+    if panorama.is_panorama(camera):
+        fx, fy, full_w, full_h = panorama._full_size(camera, width, height)
+        return replace(camera, pano_region=(fx + x0, fy + y0, full_w, full_h))
+    size, view = pixel_size(camera, width, height)
     sx = (x0 + 0.5 * w - 0.5 * width) / w + camera.shift_x * view / w
     sy = (y0 + 0.5 * h - 0.5 * height) / w + camera.shift_y * view / w
     if camera.projection == "ORTHO":
@@ -99,8 +103,12 @@ def generate_rays(camera, width, height, pixel_xy, lens_u=None):
     along the view axis, as in Cycles' thin lens.
 
     Returns origins, unit directions and tmax (clip_end), origins already moved
-    to clip_start along the ray.
+    to clip_start along the ray. A panoramic camera's film positions outside
+    its lens get tmax 0 (no ray: Accel reports a miss, the camera passes
+    leave them black).
     """
+    if panorama.is_panorama(camera):
+        return _panorama_rays(camera, width, height, pixel_xy)
     size, view = pixel_size(camera, width, height)
     pos, axes = _frame(camera)
     x = (pixel_xy[:, 0] - 0.5 * width + camera.shift_x * view) * size
@@ -143,9 +151,29 @@ def generate_rays(camera, width, height, pixel_xy, lens_u=None):
             np.maximum(tmax, 1e-6).astype(np.float32))
 
 
+def _panorama_rays(camera, width, height, pixel_xy):
+    """generate_rays of a panoramic camera (a pinhole: Cycles' depth of
+    field for panoramas is not reproduced; the export warns)."""
+    pos, axes = _frame(camera)
+    local, inside = panorama.local_directions(camera, width, height, np.asarray(pixel_xy, np.float64))
+    local[~inside] = (1.0, 0.0, 0.0)
+    d = matmul3(panorama.to_camera_frame(local), axes.T)
+    d /= np.maximum(np.linalg.norm(d, axis=1), 1e-30)[:, None]
+    origins = pos + d * camera.clip_start
+    tmax = np.where(inside, max(camera.clip_end - camera.clip_start, 1e-6), 0.0)
+    return (origins.astype(np.float32), np.ascontiguousarray(d, dtype=np.float32), tmax.astype(np.float32))
+
+
 def project(camera, width, height, points):
     """World points (N, 3) to film positions (N, 2) in pixels and view depth (N,).
-    Points behind a perspective camera get depth <= 0."""
+    Points behind a perspective camera get depth <= 0. Panoramic cameras:
+    the depth is the distance (view_depth), the film position that of the
+    direction, inside the lens or not."""
+    if panorama.is_panorama(camera):
+        pos, axes = _frame(camera)
+        local = matmul3(np.asarray(points, np.float64) - pos, axes)
+        film = panorama.local_to_film(camera, width, height, panorama.from_camera_frame(local))
+        return film.astype(np.float32), np.linalg.norm(local, axis=1).astype(np.float32)
     size, view = pixel_size(camera, width, height)
     pos, axes = _frame(camera)
     local = matmul3(np.asarray(points, np.float64) - pos, axes)
@@ -161,8 +189,11 @@ def project(camera, width, height, points):
 
 
 def view_depth(camera, points):
-    """Distance along the camera's view axis (Blender's Z/Depth pass)."""
+    """Distance along the camera's view axis (Blender's Z/Depth pass); the
+    distance from the camera for panoramic cameras, as Cycles."""
     pos, axes = _frame(camera)
+    if panorama.is_panorama(camera):
+        return np.linalg.norm(np.asarray(points, np.float64) - pos, axis=1).astype(np.float32)
     return -matmul3(np.asarray(points, np.float64) - pos, axes[:, 2]).astype(np.float32)
 
 

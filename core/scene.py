@@ -136,7 +136,7 @@ class Lights:
 class Camera:
     """Blender camera model: looks down local -Z with +Y up, sensor in mm."""
     to_world: np.ndarray = field(default_factory=lambda: np.eye(4, dtype=np.float32))
-    projection: str = "PERSP"   # or "ORTHO"
+    projection: str = "PERSP"   # or "ORTHO", "PANO"
     lens: float = 50.0          # focal length, mm
     sensor_width: float = 36.0
     sensor_height: float = 24.0
@@ -155,6 +155,19 @@ class Camera:
     aperture_blades: int = 0
     aperture_rotation: float = 0.0
     aperture_ratio: float = 1.0
+    # Panoramic cameras (projection "PANO", core/panorama.py): Cycles'
+    # panorama type, the equirectangular latitude and longitude ranges
+    # (radians), the fisheyes' field of view (radians) and equisolid lens
+    # (mm); pano_region: (x0, y0, W, H), where a render region's film lies in
+    # the full image (None: the film is the full image).
+    panorama_type: str = "EQUIRECTANGULAR"
+    latitude_min: float = -np.pi / 2
+    latitude_max: float = np.pi / 2
+    longitude_min: float = -np.pi
+    longitude_max: float = np.pi
+    fisheye_fov: float = np.pi
+    fisheye_lens: float = 10.5
+    pano_region: tuple = None
 
 
 @dataclass

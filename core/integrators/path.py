@@ -163,7 +163,7 @@ def camera_pass(ctx, width, height, seed, frame, sample, max_bounces, pixel_filt
     hits = ctx.accel.intersect_closest(o, d, tmax, camera=True)
 
     color = ctx.lights.emitted_along(o, d, np.minimum(hits.t, tmax))
-    miss = np.nonzero(~hits.hit)[0]
+    miss = np.nonzero(~hits.hit & (tmax > 0))[0]     # tmax 0: outside a fisheye's lens
     if len(miss) and ctx.lights.environment is not None and not scene.film_transparent:
         scatter_add(color, miss, ctx.lights.world_radiance(gather(d, miss), camera=True))
     depth = np.full(n, 1e10, np.float32)

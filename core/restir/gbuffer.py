@@ -211,7 +211,7 @@ def seen_directly(ctx, o, d, tmax, hits, surf, idx):
     world where they miss (unless the film is transparent) and the emission
     of the surfaces hit (surf: surface_hits of the rows idx)."""
     emission = ctx.lights.emitted_along(o, d, np.minimum(hits.t, tmax))
-    miss = np.nonzero(~hits.hit)[0]
+    miss = np.nonzero(~hits.hit & (np.asarray(tmax) > 0))[0]     # tmax 0: outside a fisheye's lens
     if len(miss) and ctx.lights.environment is not None and not ctx.scene.film_transparent:
         scatter_add(emission, miss, ctx.lights.world_radiance(gather(d, miss), camera=True))
     if len(idx):

@@ -3,6 +3,7 @@
 import numpy as np
 
 from ...core.camera import crop
+from ...core.panorama import TYPES as PANORAMA_TYPES
 from ...core.scene import Camera
 
 
@@ -50,7 +51,10 @@ def _export_camera(depsgraph, warn):
         return Camera(to_world=np.array(cam_obj.matrix_world, np.float32))
     data = cam_obj.data
     projection = data.type
-    if projection not in ("PERSP", "ORTHO"):
+    pano = {}
+    if projection == "PANO":
+        pano = panorama_settings(data, warn)
+    elif projection not in ("PERSP", "ORTHO"):
         warn(f"Camera type '{projection}' is not supported; rendering as perspective")
         projection = "PERSP"
     if scene.render.pixel_aspect_x != scene.render.pixel_aspect_y:
@@ -69,8 +73,25 @@ def _export_camera(depsgraph, warn):
         shift_y=float(data.shift_y),
         clip_start=float(data.clip_start),
         clip_end=float(data.clip_end),
-        **depth_of_field(cam_obj, data),
+        **(pano if projection == "PANO" else depth_of_field(cam_obj, data)),
     )
+
+
+def panorama_settings(data, warn):
+    """core.Camera fields of a panoramic camera (core/panorama.py). Types
+    other than equirectangular and the equidistant and equisolid fisheyes
+    render as equirectangular, with a warning; so does depth of field."""
+    kind = getattr(data, "panorama_type", "FISHEYE_EQUISOLID")
+    if kind not in PANORAMA_TYPES:
+        warn(f"Panorama type '{kind}' is not supported; rendering as equirectangular")
+        kind = "EQUIRECTANGULAR"
+    if data.dof.use_dof:
+        warn("Depth of field with a panoramic camera is not supported; rendering without it")
+    get = lambda name, default: float(getattr(data, name, default))    # noqa: E731
+    return dict(panorama_type=kind, latitude_min=get("latitude_min", -np.pi / 2),
+                latitude_max=get("latitude_max", np.pi / 2), longitude_min=get("longitude_min", -np.pi),
+                longitude_max=get("longitude_max", np.pi), fisheye_fov=get("fisheye_fov", np.pi),
+                fisheye_lens=get("fisheye_lens", 10.5))
 
 
 def depth_of_field(cam_obj, data):
