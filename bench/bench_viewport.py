@@ -196,7 +196,7 @@ def part_viewport(args, lines):
               "|---|---|---:|---|---:|---:|"]
     for scale in args.scales:
         session = vp.ViewportSession(mode=args.mode, scale=scale, max_bounces=args.bounces,
-                                     restir=base, idle_frames=10_000, samples=10_000)
+                                     restir=base, samples=0)
         session.resize(args.width, args.height)
         session.sync(bpy.context.evaluated_depsgraph_get())
         for _ in range(2):

@@ -115,12 +115,14 @@ class RestirGISceneSettings(bpy.types.PropertyGroup):
         default="AUTO", description="Resolution of the rendered viewport, for interactivity",
     )
     viewport_samples: IntProperty(
-        name="Viewport Samples", default=32, min=1, max=65536,
-        description="Path tracing in the viewport: samples before it stops refining",
+        name="Viewport Samples", default=1024, min=0, max=1 << 24,
+        description="Frames (path tracing: samples) of a still rendered viewport before it stops "
+                    "refining; it also stops once the image no longer changes (0 = no limit)",
     )
-    viewport_idle_frames: IntProperty(
-        name="Viewport Idle Frames", default=32, min=1, max=65536,
-        description="ReSTIR GI in the viewport: frames of a still view before it stops refining",
+    preview_denoising_start_sample: IntProperty(
+        name="Start Sample", default=1, min=1, max=1 << 24,
+        description="ReSTIR GI: the first sample of a still rendered viewport shown denoised "
+                    "(Viewport Denoise); the ones before are shown as rendered",
     )
     viewport_frame_budget: FloatProperty(
         name="Frame Budget", default=0.25, min=0.01, max=10.0, subtype="TIME_ABSOLUTE", unit="TIME_ABSOLUTE",

@@ -90,10 +90,12 @@ class RESTIR_RENDER_PT_viewport(RestirButtonsPanel, bpy.types.Panel):
         layout.prop(s, "viewport_scale")
         layout.prop(s, "viewport_frame_budget")
         layout.prop(s, "viewport_samples")
-        layout.prop(s, "viewport_idle_frames")
-        row = layout.row()
-        row.active = s.mode != "PATH"
-        row.prop(s, "use_preview_denoising")
+        col = layout.column()
+        col.active = s.mode != "PATH"
+        col.prop(s, "use_preview_denoising")
+        sub = col.column()
+        sub.active = s.mode != "PATH" and s.use_preview_denoising
+        sub.prop(s, "preview_denoising_start_sample")
 
 
 class RESTIR_RENDER_PT_light_paths(RestirButtonsPanel, bpy.types.Panel):

@@ -13,8 +13,9 @@ the same way by the engine and by tests:
   (moved objects go to the small dynamic Embree scene of
   ``core.dynamic_accel``) and renders one frame: a ReSTIR GI frame that keeps
   its reservoirs through camera and object motion, or one more path-traced
-  sample. Frames are averaged while nothing changes; work stops once the
-  image has ``samples`` path-traced samples or ``idle_frames`` ReSTIR frames.
+  sample. A still view is refined progressively (viewport_progress.py):
+  coarse frames step to full resolution, carrying what they learnt, then
+  frames are averaged until ``samples`` frames (0: no limit) or convergence.
 - ``start()`` runs ``render_step`` on a background thread (one per session),
   which never calls bpy; ``close()`` stops it (the frame in progress is
   abandoned at its next ray batch) and frees the buffers.
@@ -24,11 +25,13 @@ applied by ``render_step`` between two frames, so the render thread never
 sees a scene half-updated.
 
 Here: the session, its settings, the hand-over between the threads and the
-frame loop. What sync reads is in viewport_reader.py (SceneReader), how the
-render side applies it in viewport_scene.py (SceneApplier), the bookkeeping
-(Work, Update, _Pending) in viewport_state.py. The reading of meshes and
-cameras is in viewport_sync.py, the combined
-world-space arrays of all objects in viewport_arrays.py; the engine's
+frame loop. The stages of a still view's refinement and the resolution of
+each frame are in viewport_progress.py (Progress, Refinement). What sync
+reads is in viewport_reader.py (SceneReader), how the render side applies
+it in viewport_scene.py (SceneApplier), the bookkeeping (Work, Update,
+_Pending) in viewport_state.py. The reading of meshes and cameras is in
+viewport_sync.py, the combined world-space arrays of all objects in
+viewport_arrays.py; the engine's
 callbacks (``view_update``, ``view_draw``, ``free``) and the GPU drawing are
 in viewport_draw.py, re-exported here with the camera helpers.
 """
@@ -47,9 +50,9 @@ from ..core.errors import describe
 from ..core.film import to_rgba
 from ..core.render import CHUNK_PIXELS, path_trace_pixels
 from ..core.restir import ReSTIRGI, ReSTIRSettings
-from . import memory
-from .memory import SceneTooLarge
+from ..core.restir.accumulation import STILL
 from .scene_sync import SceneSync
+from .viewport_progress import SCALES, Progress, Refinement, relative_change
 from .viewport_sync import _same_camera
 from .viewport_state import Update, as_update  # noqa: F401 (re-exported for tests)
 # Re-exported: engine.py, the tests and the benchmarks find them here.
@@ -57,21 +60,15 @@ from .viewport_draw import free, session_settings, view_draw, view_update  # noq
 from .viewport_sync import camera_from_region, camera_from_view  # noqa: F401
 
 PATH = "PATH"
-SCALES = {"FULL": 1, "HALF": 2, "QUARTER": 4}
 
 # Defaults of the viewport settings (see ViewportSession).
 DEFAULT_SCALE = "AUTO"
 DEFAULT_FRAME_BUDGET = 0.25     # seconds per frame the AUTO scale aims for
-DEFAULT_SAMPLES = 32            # path tracing: samples before the viewport stops
-DEFAULT_IDLE_FRAMES = 32        # ReSTIR GI: frames of a still view before it stops
+DEFAULT_SAMPLES = 1024          # frames (path tracing: samples) of a still view before it
+                                # stops, 0: no limit (Cycles' viewport samples)
 DEFAULT_SETTLE_FRAMES = 8       # frames without edits before moved objects rejoin the static scene
 DEFAULT_DENOISE = True          # ReSTIR GI: the engine's denoiser on the frames (core/restir/denoise.py)
-
-# AUTO scale: go to a finer scale only when its predicted frame time is well
-# under the budget, to a coarser one only when well over (every change of
-# resolution drops the reservoirs).
-_FINER_BELOW = 0.7
-_COARSER_ABOVE = 1.3
+DEFAULT_DENOISE_START = 1       # the first sample (frame) of a still view shown denoised
 
 # An edit abandons the frame in progress and starts over with it: the frame
 # would show the scene before the edit, and finishing it only delays the one
@@ -79,17 +76,20 @@ _COARSER_ABOVE = 1.3
 # a row, so a continuous drag still gets frames out.
 
 
-class ViewportSession(SceneSync):
+class ViewportSession(Refinement, SceneSync):
     """The state of one viewport: scene, acceleration structure, reservoirs or
     accumulated samples, the latest frame, and counters of the work done.
 
     mode: "PATH", "RESTIR_BIASED" or "RESTIR_UNBIASED". scale: "AUTO", "FULL",
-    "HALF" or "QUARTER" (AUTO picks the finest scale whose frame time fits
-    frame_budget). samples: path-traced samples before the viewport stops;
-    idle_frames: ReSTIR frames of a still view before it stops; settle_frames:
-    frames without edits before moved objects rejoin the static Embree scene;
-    restir: the ReSTIRSettings to start from (None: the defaults, with the
-    denoiser on as DEFAULT_DENOISE says).
+    "HALF" or "QUARTER" (AUTO: while the view moves the finest scale whose
+    frame time fits frame_budget, on a still view stepping to full
+    resolution). samples: frames (path tracing: samples) of a still view
+    before the viewport stops, 0 for no limit; settle_frames: frames without
+    edits before moved objects rejoin the static Embree scene; restir: the
+    ReSTIRSettings to start from (None: the defaults, with the denoiser on as
+    DEFAULT_DENOISE says); denoise_start: with the denoiser on, the first
+    sample of a still view shown denoised (the ones before are shown as
+    accumulated; the frames right after a change count as sample 1).
     """
 
     # The viewport's passes stay on threads: its frames are interrupted by
@@ -97,12 +97,12 @@ class ViewportSession(SceneSync):
     twin_process = False
 
     def __init__(self, mode="RESTIR_BIASED", scale=DEFAULT_SCALE, samples=DEFAULT_SAMPLES,
-                 idle_frames=DEFAULT_IDLE_FRAMES, frame_budget=DEFAULT_FRAME_BUDGET,
-                 settle_frames=DEFAULT_SETTLE_FRAMES, max_bounces=4, seed=0, restir=None,
-                 threads=None):
+                 frame_budget=DEFAULT_FRAME_BUDGET, settle_frames=DEFAULT_SETTLE_FRAMES, max_bounces=4,
+                 seed=0, restir=None, denoise_start=DEFAULT_DENOISE_START, threads=None):
         super().__init__(threads)
-        self._set_settings(mode, scale, samples, idle_frames, frame_budget, settle_frames,
-                           max_bounces, seed, restir)
+        self.progress = Progress(samples)
+        self._set_settings(mode, scale, samples, frame_budget, settle_frames, max_bounces, seed,
+                           restir, denoise_start)
         self._stop = False
         self._frame_started = None      # perf_counter() when the frame in progress started
         self._frame_is_restart = False  # the frame in progress replaces an abandoned one
@@ -112,9 +112,11 @@ class ViewportSession(SceneSync):
         self._frame_index = 0
         self._divisor = None
         self._fits = None               # (width, height, divisor) whose image was found to fit
+        self._memory_floor = (None, 1)  # (display size, finest divisor that fits in memory)
         self._pixel_seconds = None      # measured seconds per pixel per frame
         self._accum = None              # running sum of frames since the last change
-        self._accum_n = 0
+        self._accum_n = 0               # frames in _accum (weights: a resolution step carries a few)
+        self._shown = None              # the latest published frame, for the convergence test
         # --- published ---
         self.frame = None               # (h, w, 4) float32 RGBA, row 0 at the bottom
         self.frame_serial = 0
@@ -125,14 +127,15 @@ class ViewportSession(SceneSync):
 
     # ------------------------------------------------------------------ settings
 
-    def _set_settings(self, mode, scale, samples, idle_frames, frame_budget, settle_frames,
-                      max_bounces, seed, restir):
+    def _set_settings(self, mode, scale, samples, frame_budget, settle_frames, max_bounces, seed,
+                      restir, denoise_start):
         if scale != "AUTO" and scale not in SCALES:
             raise ValueError(f"unknown viewport scale {scale!r}")
         self.mode = mode
         self.scale = scale
-        self.samples = max(1, int(samples))
-        self.idle_frames = max(1, int(idle_frames))
+        self.samples = max(0, int(samples))
+        self.progress.limit = self.samples
+        self.denoise_start = max(1, int(denoise_start))
         self.frame_budget = float(frame_budget)
         self.settle_frames = max(1, int(settle_frames))
         self.max_bounces = max_bounces if isinstance(max_bounces, Bounces) else int(max_bounces)
@@ -143,21 +146,30 @@ class ViewportSession(SceneSync):
         self.restir_settings = replace(base, mode=mode if mode != PATH else base.mode,
                                        max_bounces=self.max_bounces, seed=self.seed, samples=1,
                                        validate_on_change=False)
+        # A still view's frames (after the one that follows a change): one
+        # running mean over all of them, as an F12 still's
+        # (core/render.py), from reservoirs that hold samples for fewer frames.
+        self._still_settings = replace(
+            self.restir_settings, accumulate=STILL if self.restir_settings.accumulate > 1 else 1,
+            temporal_M_cap=min(self.restir_settings.temporal_M_cap, self.restir_settings.still_temporal_M_cap))
 
     def configure(self, mode="RESTIR_BIASED", scale=DEFAULT_SCALE, samples=DEFAULT_SAMPLES,
-                  idle_frames=DEFAULT_IDLE_FRAMES, frame_budget=DEFAULT_FRAME_BUDGET,
-                  settle_frames=DEFAULT_SETTLE_FRAMES, max_bounces=4, seed=0, restir=None):
+                  frame_budget=DEFAULT_FRAME_BUDGET, settle_frames=DEFAULT_SETTLE_FRAMES, max_bounces=4,
+                  seed=0, restir=None, denoise_start=DEFAULT_DENOISE_START):
         """New settings (same arguments as the constructor); restarts the image
-        only if something changed."""
-        before = (self.mode, self.scale, self.samples, self.idle_frames, self.frame_budget,
-                  self.settle_frames, self.restir_settings)
-        self._set_settings(mode, scale, samples, idle_frames, frame_budget, settle_frames,
-                           max_bounces, seed, restir)
-        after = (self.mode, self.scale, self.samples, self.idle_frames, self.frame_budget,
-                 self.settle_frames, self.restir_settings)
+        only if something changed. The sample limit and the denoiser's start
+        sample do not restart it (a higher limit goes on refining)."""
+        before = (self.mode, self.scale, self.frame_budget, self.settle_frames, self.restir_settings)
+        limits = (self.samples, self.denoise_start)
+        self._set_settings(mode, scale, samples, frame_budget, settle_frames, max_bounces, seed,
+                           restir, denoise_start)
+        after = (self.mode, self.scale, self.frame_budget, self.settle_frames, self.restir_settings)
         if before != after:
             self.work.settings_updates += 1
             self._queue(settings=True, abandon=True)
+        elif limits != (self.samples, self.denoise_start):
+            with self._cond:
+                self._cond.notify_all()     # a converged render thread may have more to do
 
     # ------------------------------------------------------------------ Blender side
 
@@ -194,8 +206,7 @@ class ViewportSession(SceneSync):
                 return False
         if self._scene is None or self._camera is None:
             return True
-        target = self.samples if self.mode == PATH else self.idle_frames
-        return self._accum_n >= target
+        return self.progress.done
 
     @property
     def view(self):
@@ -219,60 +230,18 @@ class ViewportSession(SceneSync):
                 total += a.nbytes
         return total
 
-    def _render_resolution(self):
-        if self._divisor is None:
-            self._divisor = SCALES.get(self.scale, SCALES["QUARTER"])
-        w, h = self._size
-        d = self._divisor
-        return max(1, (w + d - 1) // d), max(1, (h + d - 1) // d)
-
-    def _choose_divisor(self, budget):
-        """AUTO scale: the finest divisor whose predicted frame time fits the budget."""
-        if self.scale != "AUTO":
-            return SCALES[self.scale]
-        current = self._divisor or SCALES["QUARTER"]
-        if self._pixel_seconds is None or not budget or budget <= 0:
-            return current
-        w, h = self._size
-
-        def predicted(d):
-            return self._pixel_seconds * ((w + d - 1) // d) * ((h + d - 1) // d)
-
-        if predicted(current) > _COARSER_ABOVE * budget:
-            coarser = [d for d in (2, 4) if d > current]
-            return next((d for d in coarser if predicted(d) <= budget), 4) if coarser else current
-        finer = [d for d in (1, 2) if d < current and predicted(d) <= _FINER_BELOW * budget]
-        return finer[0] if finer else current
-
     def _should_abandon(self):
         return self._stop or self._abandon
-
-    def _fitting_divisor(self, divisor):
-        """``divisor``, or with the AUTO scale a coarser one, whose ReSTIR
-        image fits in memory (memory.check_image, checked once per image size:
-        the session's own buffers later lower what is available). Raises
-        SceneTooLarge when none fits; the status shows its message."""
-        w, h = self._size
-        if self.mode == PATH or self._fits == (w, h, divisor):
-            return divisor
-        candidates = [d for d in (1, 2, 4) if d >= divisor] if self.scale == "AUTO" else [divisor]
-        for d in candidates:
-            try:
-                memory.check_image((w + d - 1) // d, (h + d - 1) // d)
-            except SceneTooLarge:
-                if d == candidates[-1]:
-                    raise
-                continue
-            self._fits = (w, h, d)
-            return d
-        return divisor
 
     def _settings_changed(self):
         self._restir.reset()
         self._divisor = None
+        self.progress.divisor = None
 
     def _scene_changed(self):
         self._accum, self._accum_n = None, 0
+        self._shown = None
+        self.progress.changed()
 
     def render_step(self, time_budget=None):
         """Apply pending changes and render one frame. Returns True if a frame
@@ -287,11 +256,9 @@ class ViewportSession(SceneSync):
             self._count_builds(*counts)
         if self.converged:
             return False
-        divisor = self._fitting_divisor(self._choose_divisor(budget))
-        if divisor != self._divisor:
-            self._divisor = divisor
-            self._build_context(False)
-            self._accum, self._accum_n = None, 0
+        divisor = self._next_divisor(budget)
+        if divisor != self._divisor or divisor != self.progress.divisor:
+            self._step_to(divisor)
         scene = self._scene
         w, h = scene.width, scene.height
         t0 = time.perf_counter()
@@ -299,12 +266,14 @@ class ViewportSession(SceneSync):
         self._frame_started = t0
         try:
             if self.mode == PATH:
-                color = self._path_sample(self._accum_n)
+                color = self._path_sample(self.progress.samples)
             else:
-                result = self._restir.render_frame(self._ctx, self.restir_settings, self._frame_index)
+                settings = self.restir_settings if self.progress.moving else self._still_settings
+                result = self._restir.render_frame(self._ctx, settings, self._frame_index)
                 self._frame_index += 1
                 self.last_history_found = result.history_found
-                color = result.color
+                denoised = self.progress.samples + 1 >= self.denoise_start
+                color = result.color if denoised or result.noisy is None else result.noisy
         except TraceInterrupted:
             self.work.abandoned_frames += 1
             self._next_is_restart = True
@@ -313,15 +282,21 @@ class ViewportSession(SceneSync):
             self._frame_started = None
         seconds = time.perf_counter() - t0
         color = np.nan_to_num(np.asarray(color, np.float64), nan=0.0, posinf=0.0, neginf=0.0)
-        self._accum = color if self._accum is None else self._accum + color
-        # The frame is counted before _accum_n grows: a reader that sees the
-        # session converged then also sees every frame it took.
+        if self.mode == PATH:       # (ReSTIR frames are running means already)
+            self._accum = color if self._accum is None else self._accum + color
+            self._accum_n += 1
+            color = self._accum / self._accum_n
+        frame = to_rgba(color.reshape(h, w, 3))
+        change = relative_change(frame, self._shown)
+        # The frame is counted and published before the progress counts it: a
+        # reader that sees the session converged then also sees every frame
+        # it took.
         self.work.frames += 1
-        self._accum_n += 1
         self._frames_since_edit += 1
-        self.frame = to_rgba((self._accum / self._accum_n).reshape(h, w, 3))
+        self.frame = self._shown = frame
         self.frame_generation = self._applied_generation
         self.frame_serial += 1
+        self.progress.frame_done(change)
         self.last_frame_seconds = seconds
         per_pixel = seconds / max(1, w * h)
         self._pixel_seconds = per_pixel if self._pixel_seconds is None else (
@@ -406,7 +381,7 @@ class ViewportSession(SceneSync):
         self._free_scene()
         self._restir.reset()
         self._accum, self._accum_n = None, 0
-        self.frame = None
+        self.frame = self._shown = None
 
     def status(self):
         if self.error:
@@ -414,8 +389,5 @@ class ViewportSession(SceneSync):
         if self._scene is None:
             return "Waiting for the scene"
         w, h = self._scene.width, self._scene.height
-        what = "sample" if self.mode == PATH else "frame"
-        target = self.samples if self.mode == PATH else self.idle_frames
-        state = "done" if self.converged else f"{what} {self._accum_n}/{target}"
-        timing = f" | {self.last_frame_seconds:.2f} s/{what}" if self.last_frame_seconds else ""
-        return f"{w}x{h} (1/{self._divisor}) | {state}{timing}"
+        timing = f" | {self.last_frame_seconds:.2f} s/frame" if self.last_frame_seconds else ""
+        return f"{self.progress.text()} | {w}x{h}{timing}"

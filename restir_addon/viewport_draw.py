@@ -21,15 +21,15 @@ def session_settings(scene):
     with its own toggle (Viewport Denoise), not the final renders' one."""
     from dataclasses import replace
     from .final import bounces, restir_settings
-    from .viewport import DEFAULT_DENOISE, DEFAULT_FRAME_BUDGET, DEFAULT_IDLE_FRAMES, DEFAULT_SAMPLES, \
+    from .viewport import DEFAULT_DENOISE, DEFAULT_DENOISE_START, DEFAULT_FRAME_BUDGET, DEFAULT_SAMPLES, \
         DEFAULT_SCALE
     s = scene.restir_gi
     restir = replace(restir_settings(scene), denoise=bool(getattr(s, "use_preview_denoising", DEFAULT_DENOISE)))
     return dict(mode=s.mode, scale=getattr(s, "viewport_scale", DEFAULT_SCALE),
                 samples=getattr(s, "viewport_samples", DEFAULT_SAMPLES),
-                idle_frames=getattr(s, "viewport_idle_frames", DEFAULT_IDLE_FRAMES),
                 frame_budget=getattr(s, "viewport_frame_budget", DEFAULT_FRAME_BUDGET),
-                max_bounces=bounces(scene), seed=s.seed, restir=restir)
+                max_bounces=bounces(scene), seed=s.seed, restir=restir,
+                denoise_start=getattr(s, "preview_denoising_start_sample", DEFAULT_DENOISE_START))
 
 
 def view_update(engine, context, depsgraph):

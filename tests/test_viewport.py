@@ -69,7 +69,7 @@ def test03_stops_when_converged(vp, recorder):
     assert not session.converged
     assert session.render_step()
     session.close()
-    restir = new_session(vp, mode="RESTIR_BIASED", idle_frames=2)
+    restir = new_session(vp, mode="RESTIR_BIASED", samples=2)
     assert [restir.render_step() for _ in range(3)] == [True, True, False]
     restir.close()
 
@@ -90,7 +90,7 @@ def test04_moved_objects_settle(vp, recorder):
 def test05_thread_renders_and_close_frees(vp, recorder):
     import bpy
     build_scene()
-    session = new_session(vp, mode="RESTIR_BIASED", idle_frames=10_000, threads=2)
+    session = new_session(vp, mode="RESTIR_BIASED", samples=0, threads=2)
     session.resize(160, 120)
     session.start()
     assert session.wait_for_frame(timeout=60)
@@ -183,7 +183,7 @@ def test07_engine_callbacks(vp):
 def test08_edit_restarts_the_frame(vp):
     """An edit abandons the frame in progress, but never two frames in a row."""
     build_scene()
-    session = new_session(vp, mode="RESTIR_BIASED", idle_frames=10_000)
+    session = new_session(vp, mode="RESTIR_BIASED", samples=0)
     session.resize(200, 150)
     session.start()
     assert session.wait_for_frame(timeout=60)
