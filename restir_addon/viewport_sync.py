@@ -15,6 +15,7 @@ from ..core.scene import Camera
 from .export.camera import depth_of_field
 from .export.mesh import (MeshData, hair_warning, mirrors, place, placed_triangles, read_corner_data,
                           read_mesh, triangle_cross, unit_rows)
+from .export.strands import STRAND_TYPES, read_strands
 
 
 @dataclass
@@ -83,6 +84,8 @@ def _read_object_geometry(obj, keys, warn):
 
     if obj.type == "MESH":
         return read(obj.data)
+    if obj.type in STRAND_TYPES:        # point clouds and hair curves: triangles made here
+        return read_strands(obj, warn)
     try:
         me = obj.to_mesh()
     except RuntimeError:

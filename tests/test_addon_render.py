@@ -184,9 +184,10 @@ def test_unsupported_node_reported(addon, reports, tmp_path):
 
 
 def test_what_is_not_rendered_is_reported(addon, reports, tmp_path):
-    """Volume objects, point clouds, hair (curves and particles), volume
-    shading, displacement, shadow catchers and motion blur each say they are
-    not rendered; the render goes on. (Holdout objects and collections are
+    """Volume objects, particle hair, volume shading, displacement, shadow
+    catchers and motion blur each say they are not rendered; the render goes
+    on (an empty point cloud and hair curves with all points at one place
+    are there too: they render nothing, without a warning). (Holdout objects and collections are
     rendered: tests/test_addon_film.py; Indirect Only collections:
     tests/test_light_paths_vs_cycles.py.)"""
     import bpy
@@ -208,7 +209,7 @@ def test_what_is_not_rendered_is_reported(addon, reports, tmp_path):
     scene.render.use_motion_blur = True
     render_exr(scene, tmp_path / "what.exr")
     warnings = reports.of("WARNING")
-    for text in ("'Smoke': volume objects", "'Dots': point clouds", "'Fur': hair curves",
+    for text in ("'Smoke': volume objects",
                  "'Furry': particle hair", "'Fog': volume shading",
                  "'Fog': displacement", "'Catcher': shadow catcher", "Motion blur"):
         assert any(text in w for w in warnings), (text, reports.log)

@@ -3,7 +3,7 @@ batches of hits (evaluate.py) by one evaluator per node type (nodes_*.py),
 leaving closures (closure.py) that core/materials.py turns into BSDF
 parameters."""
 
-from . import (nodes_color, nodes_input, nodes_math, nodes_noise, nodes_shader,  # noqa: F401 (registers)
+from . import (nodes_color, nodes_hair, nodes_input, nodes_math, nodes_noise, nodes_shader,  # noqa: F401 (registers)
                nodes_spectrum, nodes_texture, nodes_voronoi)
 from .closure import Closure
 from .evaluate import EVALUATORS, CompiledShader

@@ -11,6 +11,7 @@ from .lights import is_supported, light_row
 from .materials import MaterialTable
 from .mesh import (GEOMETRY_TYPES, SWAP, hair_warning, mirrors, place, placed_triangles, read_corner_data, read_mesh,
                    unrendered)
+from .strands import STRAND_TYPES, read_strands
 from .object_attributes import attribute_tables, object_attributes, split_needs
 from .world import evaluated_world, export_world
 
@@ -30,6 +31,12 @@ def _object_mesh(obj, cache, keys, warn):
     """(MeshData, corner data) of an evaluated object, cached by data block
     (corner data read for ``keys``, more read when a later user needs more);
     None where the object has no usable geometry (with a warning)."""
+    if obj.type in STRAND_TYPES:
+        key = obj.data.as_pointer()
+        if key not in cache:
+            mesh = read_strands(obj, warn)
+            cache[key] = None if mesh is None else (mesh, {})
+        return cache[key]
     if obj.type == "MESH":
         key = obj.data.as_pointer()
         if key not in cache:

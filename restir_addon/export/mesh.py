@@ -11,10 +11,10 @@ import numpy as np
 # Curve, surface, text and metaball objects are not listed: the depsgraph hands
 # their evaluated geometry over as a separate MESH instance (the one Cycles
 # renders), so converting the objects themselves would add every triangle twice.
-GEOMETRY_TYPES = {"MESH", "CURVES"}
+# Point clouds and hair curves are tessellated (export/strands.py).
+GEOMETRY_TYPES = {"MESH", "CURVES", "POINTCLOUD"}
 # Object types with geometry that this engine does not render: a warning each.
-UNRENDERED_TYPES = {"VOLUME": "volume objects are not rendered",
-                    "POINTCLOUD": "point clouds are not rendered"}
+UNRENDERED_TYPES = {"VOLUME": "volume objects are not rendered"}
 
 
 def unrendered(obj):
@@ -24,12 +24,10 @@ def unrendered(obj):
 
 
 def hair_warning(obj, mesh):
-    """The warning for hair this engine does not render (strands are not
-    triangles): a hair curves object without faces, or a particle system of
-    hair drawn as strands (Render As Path). None otherwise. mesh: the
-    object's MeshData as read (None if it had none)."""
-    if obj.type == "CURVES" and (mesh is None or len(mesh.triangles) == 0):
-        return f"Object '{obj.name}': hair curves are not rendered"
+    """The warning for hair this engine does not render: a particle system
+    of hair drawn as strands (Render As Path; hair curves objects render as
+    tubes, export/strands.py). None otherwise. mesh: the object's MeshData
+    as read (None if it had none)."""
     for system in getattr(obj, "particle_systems", ()):
         settings = system.settings
         if settings.type == "HAIR" and settings.render_type == "PATH":
