@@ -92,7 +92,28 @@ def pin_camera(scene, frame):
     scene.frame_set(frame)
 
 
-def render_frames(blend, frames, setup, pin=None, log_path=None, scene_start=None):
+def read_passes(path, names):
+    """{name: (H, W, C) float32, bottom row first} of the passes ``names``
+    (e.g. "Combined", "Denoising Albedo") of a multilayer EXR that Blender
+    wrote: RGB(A) passes as RGB, vectors as XYZ, values as (H, W, 1)."""
+    import OpenEXR
+    out = {}
+    with OpenEXR.File(str(path), separate_channels=True) as f:
+        channels = {}
+        for part in f.parts:
+            channels.update(part.channels)
+    for name in names:
+        for ids in ("RGB", "XYZ", "Z", "V"):
+            keys = [f"ViewLayer.{name}.{c}" for c in ids]
+            if all(k in channels for k in keys):
+                out[name] = np.stack([channels[k].pixels for k in keys], axis=2)[::-1].astype(np.float32)
+                break
+        else:
+            raise ValueError(f"no pass {name!r} in {path}")
+    return out
+
+
+def render_frames(blend, frames, setup, pin=None, log_path=None, scene_start=None, passes=None):
     """Open ``blend``, optionally pin its camera at frame ``pin``, call
     ``setup(scene)``, and render ``frames`` (consecutive) as a user does:
     ``bpy.ops.render.render(animation=True)`` into 32-bit OpenEXR files. The
@@ -101,7 +122,9 @@ def render_frames(blend, frames, setup, pin=None, log_path=None, scene_start=Non
     ``blender -f A..B``: a chunk of a farm render).
 
     Returns ({frame: (H, W, 3) linear image, bottom row first},
-    {frame: seconds from render_pre to render_post}, [report lines])."""
+    {frame: seconds from render_pre to render_post}, [report lines]). With
+    ``passes`` (pass names besides Combined) the files are multilayer and
+    each frame's entry is {pass name: read_passes' array}, Combined included."""
     import bpy
     from restir_gi.core.film import read_exr
     start, seconds = {}, {}
@@ -129,7 +152,11 @@ def render_frames(blend, frames, setup, pin=None, log_path=None, scene_start=Non
         r = scene.render
         r.use_file_extension, r.use_overwrite, r.use_placeholder = True, True, False
         s = r.image_settings
-        s.media_type, s.file_format, s.color_mode, s.color_depth = 'IMAGE', 'OPEN_EXR', 'RGB', '32'
+        if passes:
+            s.media_type, s.file_format = 'MULTI_LAYER_IMAGE', 'OPEN_EXR_MULTILAYER'
+            s.color_mode, s.color_depth = 'RGBA', '32'
+        else:
+            s.media_type, s.file_format, s.color_mode, s.color_depth = 'IMAGE', 'OPEN_EXR', 'RGB', '32'
         r.filepath = os.path.join(tmp, "frame_####")
         bpy.app.handlers.render_pre.append(pre)
         bpy.app.handlers.render_post.append(post)
@@ -146,7 +173,8 @@ def render_frames(blend, frames, setup, pin=None, log_path=None, scene_start=Non
             path = os.path.join(tmp, f"frame_{f:04d}.exr")
             if not os.path.isfile(path) or f not in seconds:
                 raise RuntimeError(f"frame {f} of {blend} was not written; see {log_path}")
-            images[f] = read_exr(path)
-            if not np.isfinite(images[f]).all():
-                raise RuntimeError(f"frame {f} of {blend} has non-finite pixels")
+            images[f] = read_passes(path, ("Combined",) + tuple(passes)) if passes else read_exr(path)
+            for name, img in (images[f].items() if passes else (("Combined", images[f]),)):
+                if not np.isfinite(img).all():
+                    raise RuntimeError(f"frame {f} of {blend} has non-finite pixels ({name})")
     return images, seconds, reports
