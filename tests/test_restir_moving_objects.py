@@ -9,6 +9,7 @@ has none of that. The two must agree up to noise.
 import dataclasses
 
 import numpy as np
+import pytest
 
 from core import Camera, Lights, Materials, RenderContext, make_scene
 from core.restir import ReSTIRGI, ReSTIRSettings
@@ -17,6 +18,7 @@ from core.scene import LIGHT_POINT
 from scenes import Builder, look_at, quad
 
 SIZE = 64
+LAG_BOUND = 1.5    # frames a moving shadow may trail (0.78 on 2026-12-05; 5.1 with its history kept)
 
 
 def scene_with(card_verts, x, patch=False, power=None):
@@ -160,3 +162,70 @@ def test_final_renders_validate_in_the_frame_the_light_changed():
     ratios = [float(luminance(r.color).mean() / luminance(still.color).mean()) for r in (mid, anim)]
     print(f"frames 10 and 11 after the jump / still render: {ratios[0]:.3f} {ratios[1]:.3f}")
     assert all(abs(r - 1.0) < 0.04 for r in ratios), ratios
+
+
+# --------------------------------------------------------------- lag
+
+def darkness_centroid(color, away, mask):
+    """Image column (x) of the centroid of how much darker than ``away`` (the
+    floor with the card far off) each pixel of ``mask`` is: where the shadow
+    lies, weighed by its depth."""
+    dark = np.clip(1.0 - luminance(color) / np.maximum(luminance(away), 1e-6), 0.0, 1.0)
+    dark = np.where(mask, dark, 0.0).reshape(SIZE, SIZE)
+    cols = np.arange(SIZE, dtype=np.float64)
+    return float((dark.sum(axis=0) * cols).sum() / dark.sum())
+
+
+def shadow_lag(settings, positions):
+    """Frames the moving card's shadow trails behind where a still render of
+    the last pose has it, in the animation's last frame: the darkness
+    centroids' offset divided by the shadow's speed on the film (from still
+    renders of the last two poses). Pixels where the card itself is seen, in
+    any of the renders, are left out."""
+    restir = ReSTIRGI()
+    for f, x in enumerate(positions):
+        ctx = RenderContext.build(scene_with(OCCLUDER, x))
+        try:
+            anim = restir.render_frame(ctx, settings, f)
+        finally:
+            ctx.close()
+    floor = restir.history.object_id == 0
+    stills = []
+    for x in positions[-2:]:
+        still, r = still_render(OCCLUDER, x, settings=settings)
+        stills.append(still)
+        floor &= r.history.object_id == 0
+    away, r = still_render(OCCLUDER, 100.0, settings=settings)
+    floor &= r.history.object_id == 0
+    c_anim = darkness_centroid(anim.color, away.color, floor)
+    c_prev, c_last = (darkness_centroid(s.color, away.color, floor) for s in stills)
+    speed = c_last - c_prev
+    assert abs(speed) > 1.0, speed       # pixels per frame: the measure can see a frame's lag
+    return (c_last - c_anim) / speed
+
+
+LAG_POSITIONS = list(np.linspace(-1.2, 0.6, 12))
+
+
+@pytest.mark.parametrize("denoise", [False, True])
+def test_a_moving_shadow_follows_within_a_frame_or_two(denoise):
+    """The card's shadow on the floor, in the last frame of a slide, lies
+    where a still render of the card's last pose has it, within a frame of
+    motion: the floor's running means restart where the shadow came or went
+    (accumulation.light_range), and the denoiser filters only this frame's
+    means."""
+    lag = shadow_lag(ReSTIRSettings(seed=5, max_bounces=3, denoise=denoise), LAG_POSITIONS)
+    print(f"shadow lag, denoise={denoise}: {lag:.2f} frames")
+    assert -0.5 < lag < LAG_BOUND, lag
+
+
+def test_the_lag_measure_sees_a_history_kept_across_the_shadow(monkeypatch):
+    """The same measure with the floor's history kept where the shadow moved
+    (no light gate, every frame of the running means kept): the shadow
+    smears along its path and trails by more than the bound above."""
+    import core.restir as restir_module
+    monkeypatch.setattr(restir_module, "light_range", lambda *a, **k: None)
+    monkeypatch.setattr(restir_module, "MOVING_CAP", 1 << 30)
+    lag = shadow_lag(ReSTIRSettings(seed=5, max_bounces=3, denoise=True), LAG_POSITIONS)
+    print(f"shadow lag with the history kept: {lag:.2f} frames")
+    assert lag > LAG_BOUND, lag
