@@ -31,6 +31,7 @@ from ..core.errors import describe
 from ..core.environment import scene_environment
 from ..core.film import to_rgba
 from ..core.integrators.bounces import Bounces
+from ..core.media import media_of
 from ..core.render import render_restir
 from ..core.restir import ReSTIRSettings
 from . import memory, state
@@ -53,8 +54,9 @@ last_timings = {}
 def bounces(scene):
     """Render > Light Paths: the total and per-kind limits (as Cycles counts)."""
     s = scene.restir_gi
+    cycles = getattr(scene, "cycles", None)     # Light Paths > Volume is Cycles' own setting (default 0)
     return Bounces(s.max_bounces, getattr(s, "diffuse_bounces", None), getattr(s, "glossy_bounces", None),
-                   getattr(s, "transmission_bounces", None))
+                   getattr(s, "transmission_bounces", None), volume=int(getattr(cycles, "volume_bounces", 0)))
 
 
 def path_settings(scene, samples=None):
@@ -389,6 +391,8 @@ def _render_view(engine, depsgraph, view, report=True, stream=None, preview=Fals
         if not (lit or scene_environment(core_scene) is not None or emissive):
             engine.report({"WARNING"}, "The scene has no light source (no lights, emissive "
                                        "materials or world light): the image is black")
+        if not preview and scene.restir_gi.mode != "PATH" and media_of(core_scene, ctx.eps) is not None:
+            engine.report({"WARNING"}, "Volumes render in Path Tracing mode only; this mode leaves them out")
         read_s, apply_s = frame_scene.timings
         export_s = read_s + apply_s
         trace_before, rays_before = ctx.accel.trace_seconds, ctx.accel.rays_traced

@@ -184,10 +184,10 @@ def test_unsupported_node_reported(addon, reports, tmp_path):
 
 
 def test_what_is_not_rendered_is_reported(addon, reports, tmp_path):
-    """Volume objects, particle hair, volume shading, displacement, shadow
-    catchers and motion blur each say they are not rendered; the render goes
-    on (an empty point cloud and hair curves with all points at one place
-    are there too: they render nothing, without a warning). (Holdout objects and collections are
+    """Volume objects, particle hair, displacement, shadow catchers and
+    motion blur each say they are not rendered; the render goes on (an empty
+    point cloud, hair curves with all points at one place and a plane with
+    a volume material are there too: they render without a warning). (Holdout objects and collections are
     rendered: tests/test_addon_film.py; Indirect Only collections:
     tests/test_light_paths_vs_cycles.py.)"""
     import bpy
@@ -210,7 +210,7 @@ def test_what_is_not_rendered_is_reported(addon, reports, tmp_path):
     render_exr(scene, tmp_path / "what.exr")
     warnings = reports.of("WARNING")
     for text in ("'Smoke': volume objects",
-                 "'Furry': particle hair", "'Fog': volume shading",
+                 "'Furry': particle hair",
                  "'Fog': displacement", "'Catcher': shadow catcher", "Motion blur"):
         assert any(text in w for w in warnings), (text, reports.log)
     img = read_exr(tmp_path / "what.exr")
@@ -219,10 +219,11 @@ def test_what_is_not_rendered_is_reported(addon, reports, tmp_path):
     assert reports.of("ERROR") == []
 
 
-def test_volume_only_material_is_see_through(addon, reports, tmp_path):
+def test_volume_only_material_is_fog(addon, reports, tmp_path):
     """A fog box around the scene (a material with only a Volume) has no
-    surface in Cycles; its volume is not rendered here, so the image is the
-    scene without it, with a warning, not the inside of a black box."""
+    surface in Cycles: its boundary lets light through and the medium inside
+    dims and scatters it (tests/test_volumes.py compares media with Cycles).
+    Rendered, not a black box: darker than the clear scene but lit."""
     import bpy
     scene = lit_plane_scene()
     render_exr(scene, tmp_path / "clear.exr")
@@ -230,6 +231,7 @@ def test_volume_only_material_is_see_through(addon, reports, tmp_path):
     tree = mat.node_tree
     tree.nodes.remove(tree.nodes["Principled BSDF"])
     fog = tree.nodes.new("ShaderNodeVolumePrincipled")
+    fog.inputs["Density"].default_value = 0.05
     tree.links.new(fog.outputs[0], tree.nodes["Material Output"].inputs["Volume"])
     corners = [(x, y, z) for x in (-8, 8) for y in (-8, 8) for z in (-8, 8)]
     faces = [[0, 1, 3, 2], [4, 6, 7, 5], [0, 4, 5, 1], [2, 3, 7, 6], [0, 2, 6, 4], [1, 5, 7, 3]]
@@ -237,8 +239,8 @@ def test_volume_only_material_is_see_through(addon, reports, tmp_path):
     render_exr(scene, tmp_path / "fog.exr")
     clear, fog = read_exr(tmp_path / "clear.exr"), read_exr(tmp_path / "fog.exr")
     assert_valid(fog, (32, 32))
-    np.testing.assert_allclose(fog.reshape(-1, 3).mean(axis=0), clear.reshape(-1, 3).mean(axis=0), rtol=0.05)
-    assert any("'Fog': volume shading" in w and "see-through" in w for w in reports.of("WARNING")), reports.log
+    assert 0.05 * clear.mean() < fog.mean() < clear.mean()
+    assert not any("volume" in w for w in reports.of("WARNING")), reports.log
 
 
 def test_fixed_problems_are_not_reported_again(addon, reports, tmp_path):

@@ -72,7 +72,7 @@ class ShadingFrame:
 
 
 def direct_light(ctx, surf, frame, seeds, bounce, mis=True, strategy_pdf=None, u_light=None,
-                 weigh=None, count=None):
+                 weigh=None, count=None, media=None):
     """Next-event estimation at surface hits: one light sample and one shadow ray each.
 
     Returns the reflected radiance toward wo, (N, 3). With ``mis`` the sample is
@@ -85,6 +85,7 @@ def direct_light(ctx, surf, frame, seeds, bounce, mis=True, strategy_pdf=None, u
     splits the world's light between NEE and its reservoirs lobe by lobe).
     count: (N,) light samples each point takes, of which this is one: the
     MIS weights count them all (count x pdf) against the one BSDF sample.
+    media: core.media.Media whose transmittance the shadow rays carry.
     """
     n = len(surf)
     out = np.zeros((n, 3), np.float32)
@@ -134,6 +135,10 @@ def direct_light(ctx, surf, frame, seeds, bounce, mis=True, strategy_pdf=None, u
         blocked = ctx.accel.occluded(*shadow_rays(ctx, gather(surf.p, rows), gather(surf.ng, rows),
                                                   gather(ls.wi, rows), ls.dist[rows]))
         lit = np.concatenate([lit, rows[~blocked]]) if len(lit) else rows[~blocked]
+    if media is not None and len(lit):
+        tr = media.along(*shadow_rays(ctx, gather(surf.p, lit), gather(surf.ng, lit), gather(ls.wi, lit),
+                                      ls.dist[lit])).transmittance()
+        return scatter(out, lit, gather(contrib, lit) * tr)
     return scatter(out, lit, gather(contrib, lit))
 
 

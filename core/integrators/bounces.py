@@ -29,17 +29,19 @@ KIND_NAMES = ("diffuse", "glossy", "transmission")
 class Bounces(int):
     """Max bounces in all (the int value) and per kind of bounce."""
 
-    def __new__(cls, total, diffuse=None, glossy=None, transmission=None):
+    def __new__(cls, total, diffuse=None, glossy=None, transmission=None, volume=None):
         self = super().__new__(cls, int(total))
         self.per_kind = tuple(int(total if v is None else v) for v in (diffuse, glossy, transmission))
+        # Scattering in media (core/integrators/media_path.py): None, the total.
+        self.volume = None if volume is None else int(volume)
         return self
 
     def __reduce__(self):
-        return (Bounces, (int(self), *self.per_kind))
+        return (Bounces, (int(self), *self.per_kind, self.volume))
 
     def __eq__(self, other):
         if isinstance(other, Bounces):
-            return int(self) == int(other) and self.per_kind == other.per_kind
+            return int(self) == int(other) and self.per_kind == other.per_kind and self.volume == other.volume
         return int(self) == other
 
     def __ne__(self, other):

@@ -19,6 +19,7 @@ from .. import materials, samplers
 from ..accel import offset_origins
 from ..camera import generate_rays, view_depth
 from ..interaction import surface_hits
+from ..media import media_of
 from ..rows import gather, row_max, scale, scatter, scatter_add
 from ..sampling import luminance, power_heuristic
 from .base import ShadingFrame, direct_light, sample_continuation
@@ -161,7 +162,11 @@ def camera_pass(ctx, width, height, seed, frame, sample, max_bounces, pixel_filt
     xy += pixel_filter.offsets(samplers.sobol_jitter(samplers.hash_keys(seed, frame, pix, CAMERA_JITTER), sample))
     o, d, tmax = generate_rays(scene.camera, width, height, xy, samplers.lens_uniforms(scene.camera, seeds))
     hits = ctx.accel.intersect_closest(o, d, tmax, camera=True)
-
+    media = media_of(scene, ctx.eps)
+    if media is not None:
+        from .media_path import camera_radiance
+        color = camera_radiance(ctx, media, o, d, tmax, hits, seeds, max_bounces)
+        return _with_aovs(ctx, color, o, d, hits, n, tmax)
     color = ctx.lights.emitted_along(o, d, np.minimum(hits.t, tmax))
     miss = np.nonzero(~hits.hit & (tmax > 0))[0]     # tmax 0: outside a fisheye's lens
     if len(miss) and ctx.lights.environment is not None and not scene.film_transparent:
@@ -177,6 +182,26 @@ def camera_pass(ctx, width, height, seed, frame, sample, max_bounces, pixel_filt
         light = radiance_from_surface(ctx, surf, seeds[idx], 0, max_bounces, shading, first=first)
         light += materials.camera_emission(scene, surf, ctx.lights)
         scatter_add(color, idx, light)
+        depth[idx] = view_depth(scene.camera, surf.p)
+        scatter(normal, idx, surf.ns)
+        scatter(albedo, idx, np.clip(shading.params.diffuse + shading.params.f0, 0.0, 1.0))
+    np.nan_to_num(color, copy=False, nan=0.0, posinf=0.0, neginf=0.0)
+    alpha, keep = materials.camera_alpha(scene, n, idx, surf)
+    if (keep < 1).any():
+        color = scale(color, keep)
+    return PassResult(color, depth, normal, albedo, alpha)
+
+
+def _with_aovs(ctx, color, o, d, hits, n, tmax):
+    """PassResult of colours found another way (through media) with the
+    passes of the camera rays' first surfaces."""
+    scene = ctx.scene
+    depth = np.full(n, 1e10, np.float32)
+    normal = np.zeros((n, 3), np.float32)
+    albedo = np.zeros((n, 3), np.float32)
+    surf, idx = surface_hits(scene, o, d, hits, hits.hit & (tmax > 0))
+    if len(idx):
+        shading = ShadingFrame.at(scene, surf, camera_ray=True)
         depth[idx] = view_depth(scene.camera, surf.p)
         scatter(normal, idx, surf.ns)
         scatter(albedo, idx, np.clip(shading.params.diffuse + shading.params.f0, 0.0, 1.0))

@@ -57,6 +57,9 @@ class ShaderGraph:
     name: str = ""
     warnings: list = field(default_factory=list)
     needs: set = field(default_factory=set)
+    # The homogeneous medium of the Volume socket (core/media.py:
+    # sigma_a, sigma_s, emission, g), None without one.
+    volume: dict = None
 
     def add(self, node):
         self.nodes.append(node)

@@ -41,6 +41,7 @@ from collections import namedtuple
 from ...core.shader.graph import Link, Node, ShaderGraph
 
 from .node_values import COLOR, FLOAT, SHADER, VECTOR, convert, node_props, plain, uses_nodes, zero
+from .volumes import read_volume
 
 _GROUPS = ("GROUP", "CUSTOM GROUP")
 _PROCEDURAL = frozenset(("TEX_BRICK", "TEX_CHECKER", "TEX_GABOR", "TEX_GRADIENT", "TEX_MAGIC",
@@ -105,16 +106,16 @@ def translate(tree, output_types=("OUTPUT_MATERIAL",), images=None, name=""):
             graph.output = _Translator(graph, images).reader_value(surface, _Scope(tree), output.name)
         volume = output.inputs.get("Volume")
         if volume is not None and volume.is_linked and _available(volume):
+            if "OUTPUT_MATERIAL" not in output_types:
+                graph.warnings.append("volume shading of the world is not rendered")
+            else:
+                graph.volume = read_volume(volume, graph.warnings.append)
             if surface is not None and not surface.is_linked and "OUTPUT_MATERIAL" in output_types:
                 # Cycles' boundary of a volume-only material (a smoke domain,
-                # a fog box around the scene) lets light through: without the
-                # volume it is see-through, not a black box.
+                # a fog box around the scene) lets light through: only the
+                # medium inside it shows (core/media.py).
                 graph.output = Link(graph.add(Node("BSDF_TRANSPARENT", {"Color": (1.0, 1.0, 1.0)},
                                                    name="Volume boundary")), "BSDF")
-                graph.warnings.append("volume shading is not rendered (the volume-only material is "
-                                      "left see-through)")
-            else:
-                graph.warnings.append("volume shading is not rendered (only the surface)")
         displacement = output.inputs.get("Displacement")
         if displacement is not None and displacement.is_linked and _available(displacement):
             graph.warnings.append("displacement is not rendered")
