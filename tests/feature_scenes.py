@@ -3,7 +3,8 @@ cameras, point clouds, hair, volumes), built by script on the example Cornell
 box: the feature rows of bench/contact_sheet.py, ours beside Cycles. Each
 builder takes the opened Cornell box scene and changes it so the feature
 decides most of the image; the tests of each feature (tests/test_panorama.py,
-...) compare their own, smaller scenes with Cycles.
+test_strands.py, test_volumes.py) compare their own, smaller scenes with
+Cycles. The point cloud and hair builders are also those tests' objects.
 """
 
 import math
@@ -119,5 +120,24 @@ def hair(scene):
     hair_object(centre=(0.0, 0.0, 0.0), scale=0.6, radius=(0.04, 0.01))
 
 
+def volume(scene):
+    """A box of Principled Volume (density 2, warm colour, anisotropy 0.3)
+    in place of the tall box; Cycles' Light Paths > Volume bounces 2."""
+    import bpy
+    tall = bpy.data.objects["TallBox"]
+    mat = bpy.data.materials.new("Fog")
+    tree = mat.node_tree
+    tree.nodes.remove(tree.nodes["Principled BSDF"])
+    node = tree.nodes.new("ShaderNodeVolumePrincipled")
+    node.inputs["Density"].default_value = 2.0
+    node.inputs["Color"].default_value = (0.9, 0.7, 0.5, 1.0)
+    node.inputs["Anisotropy"].default_value = 0.3
+    tree.links.new(node.outputs[0], tree.nodes["Material Output"].inputs["Volume"])
+    tall.data.materials.clear()
+    tall.data.materials.append(mat)
+    tall.location.z += 0.01         # off the floor: coplanar faces flicker between the two
+    scene.cycles.volume_bounces = 2
+
+
 FEATURES = {"panorama_equirectangular": panorama_equirectangular, "panorama_fisheye": panorama_fisheye,
-            "point_cloud": point_cloud, "hair": hair}
+            "point_cloud": point_cloud, "hair": hair, "volume": volume}
