@@ -15,7 +15,7 @@ from ..core.scene import Camera
 from .export.camera import depth_of_field
 from .export.mesh import (MeshData, hair_warning, mirrors, place, placed_triangles, read_corner_data,
                           read_mesh, triangle_cross, unit_rows)
-from .export.strands import STRAND_TYPES, read_strands
+from .export.strands import STRAND_TYPES, read_strands, with_particle_hair
 
 
 @dataclass
@@ -83,7 +83,7 @@ def _read_object_geometry(obj, keys, warn):
         return _clean_mesh(mesh, warn, obj.name)
 
     if obj.type == "MESH":
-        return read(obj.data)
+        return with_particle_hair(obj, read(obj.data), warn)
     if obj.type in STRAND_TYPES:        # point clouds and hair curves: triangles made here
         return read_strands(obj, warn)
     try:

@@ -184,10 +184,10 @@ def test_unsupported_node_reported(addon, reports, tmp_path):
 
 
 def test_what_is_not_rendered_is_reported(addon, reports, tmp_path):
-    """Volume objects, particle hair, displacement, shadow catchers and
-    motion blur each say they are not rendered; the render goes on (an empty
-    point cloud, hair curves with all points at one place and a plane with
-    a volume material are there too: they render without a warning). (Holdout objects and collections are
+    """Volume objects, displacement, shadow catchers and motion blur each say
+    they are not rendered; the render goes on (an empty point cloud, hair
+    curves with all points at one place, particle hair and a plane with a
+    volume material are there too: they render without a warning). (Holdout objects and collections are
     rendered: tests/test_addon_film.py; Indirect Only collections:
     tests/test_light_paths_vs_cycles.py.)"""
     import bpy
@@ -210,7 +210,6 @@ def test_what_is_not_rendered_is_reported(addon, reports, tmp_path):
     render_exr(scene, tmp_path / "what.exr")
     warnings = reports.of("WARNING")
     for text in ("'Smoke': volume objects",
-                 "'Furry': particle hair",
                  "'Fog': displacement", "'Catcher': shadow catcher", "Motion blur"):
         assert any(text in w for w in warnings), (text, reports.log)
     img = read_exr(tmp_path / "what.exr")
@@ -245,18 +244,17 @@ def test_volume_only_material_is_fog(addon, reports, tmp_path):
 
 def test_fixed_problems_are_not_reported_again(addon, reports, tmp_path):
     """A warning belongs to the render that found it: once the user fixed what
-    it was about (hair now drawn as objects), the next render is silent."""
+    it was about (a shadow catcher made an ordinary object), the next render
+    is silent."""
     scene = lit_plane_scene()
-    furry = add_mesh("Furry", *rect(-1, 1, -1, 1, z=0.5))
-    settings = furry.modifiers.new("hair", "PARTICLE_SYSTEM").particle_system.settings
-    settings.type = "HAIR"
+    catcher = add_mesh("Catcher", *rect(-1, 1, -1, 1, z=0.5))
+    catcher.is_shadow_catcher = True
     render_exr(scene, tmp_path / "before.exr")
-    assert any("'Furry': particle hair" in w for w in reports.of("WARNING")), reports.log
-    settings.render_type = "OBJECT"
-    settings.instance_object = add_mesh("Seed", *rect(-0.01, 0.01, -0.01, 0.01, z=-1.0))
+    assert any("'Catcher': shadow catcher" in w for w in reports.of("WARNING")), reports.log
+    catcher.is_shadow_catcher = False
     reports.log.clear()
     render_exr(scene, tmp_path / "after.exr")
-    assert not any("particle hair" in w for w in reports.of("WARNING")), reports.log
+    assert not any("shadow catcher" in w for w in reports.of("WARNING")), reports.log
 
 
 @pytest.mark.parametrize("mode", ["PATH", "RESTIR_BIASED"])

@@ -79,6 +79,35 @@ def test_hair_matches_cycles(addon, shape):
     _compare(scene, f"hair ({shape.lower()})", max_chi=5.0 if shape == "THICK" else 15.0)
 
 
+def _particle_hair(show_emitter=True, children=0):
+    """A plane emitting 60 hair strands (Render As Path), radius 0.02 at the
+    root tapering to a closed tip, slightly bent by a gravity-free hair
+    shape; both share the plane's Diffuse material."""
+    import bpy
+    from addon_util import add_mesh, rect
+    from blender_util import diffuse_material
+    ob = add_mesh("Furry", *rect(-1.2, 1.2, -1.2, 1.2, z=0.01), mat=diffuse_material("Fur", (0.9, 0.5, 0.2)))
+    st = ob.modifiers.new("hair", "PARTICLE_SYSTEM").particle_system.settings
+    st.type, st.count, st.hair_length = "HAIR", 60, 0.8
+    st.root_radius, st.tip_radius, st.radius_scale = 1.0, 0.2, 0.04
+    st.child_type = "INTERPOLATED" if children else "NONE"
+    st.rendered_child_count = st.child_percent = children
+    ob.show_instancer_for_render = show_emitter
+    return ob
+
+
+@pytest.mark.parametrize("show_emitter,children", [(True, 0), (False, 0), (True, 6)])
+def test_particle_hair_matches_cycles(addon, show_emitter, children):
+    """Particle hair (the strands read through ParticleSystem.co_hair, with
+    interpolated children too) as 3D curves: the tolerance of the hair
+    curves test."""
+    scene = _stage()
+    scene.cycles_curves.shape = "THICK"
+    _particle_hair(show_emitter, children)
+    _compare(scene, f"particle hair (emitter {'shown' if show_emitter else 'hidden'}, {children} children)",
+             max_chi=5.0)
+
+
 @pytest.mark.parametrize("parametrization", ["MELANIN", "COLOR"])
 def test_principled_hair_approximation(addon, reports, parametrization):
     """The Principled Hair BSDF (melanin 0.3, or a direct colour) as diffuse

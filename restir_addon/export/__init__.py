@@ -11,7 +11,7 @@ from .lights import is_supported, light_row
 from .materials import MaterialTable
 from .mesh import (GEOMETRY_TYPES, SWAP, hair_warning, mirrors, place, placed_triangles, read_corner_data, read_mesh,
                    unrendered)
-from .strands import STRAND_TYPES, read_strands
+from .strands import STRAND_TYPES, has_particle_hair, pad_corners, read_strands, with_particle_hair
 from .object_attributes import attribute_tables, object_attributes, split_needs
 from .world import evaluated_world, export_world
 
@@ -38,15 +38,24 @@ def _object_mesh(obj, cache, keys, warn):
             cache[key] = None if mesh is None else (mesh, {})
         return cache[key]
     if obj.type == "MESH":
-        key = obj.data.as_pointer()
+        hair = has_particle_hair(obj)       # the object's own strands: not shared with the mesh's other users
+        key = ("hair", obj.name) if hair else obj.data.as_pointer()
         if key not in cache:
-            cache[key] = _read(obj.data, obj.name, warn)
+            entry = _read(obj.data, obj.name, warn)
+            if hair:
+                mesh = with_particle_hair(obj, None if entry is None else entry[0], warn)
+                entry = None if mesh is None else (mesh, {}) if entry is None or mesh is not entry[0] and \
+                    not getattr(obj, "show_instancer_for_render", True) else (mesh, entry[1])
+            cache[key] = entry
             text = hair_warning(obj, None)
             if text:
                 warn(text)
         entry = cache[key]
-        if entry is not None and not keys <= set(entry[1]):
+        emitter = not hair or getattr(obj, "show_instancer_for_render", True)
+        if entry is not None and emitter and not keys <= set(entry[1]):
             entry[1].update(read_corner_data(obj.data, keys - set(entry[1]), warn, obj.name))
+        if hair and entry is not None:
+            return entry[0], pad_corners(entry[1], entry[0])
         return entry
     key = ("converted", obj.name)
     if key not in cache:

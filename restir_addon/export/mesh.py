@@ -24,14 +24,10 @@ def unrendered(obj):
 
 
 def hair_warning(obj, mesh):
-    """The warning for hair this engine does not render: a particle system
-    of hair drawn as strands (Render As Path; hair curves objects render as
-    tubes, export/strands.py). None otherwise. mesh: the object's MeshData
-    as read (None if it had none)."""
-    for system in getattr(obj, "particle_systems", ()):
-        settings = system.settings
-        if settings.type == "HAIR" and settings.render_type == "PATH":
-            return f"Object '{obj.name}': particle hair is not rendered"
+    """The warning for hair this engine does not render. Hair curves objects
+    and particle hair drawn as strands (Render As Path) render as tubes
+    (export/strands.py; a system with more strands than it reads warns
+    there): None. mesh: the object's MeshData as read (None if it had none)."""
     return None
 
 
