@@ -83,7 +83,9 @@ def _draw(engine, scene, frame, serial, width, height):
         frame = np.ascontiguousarray(frame, np.float32)
         h, w = frame.shape[:2]
         pixels = gpu.types.Buffer("FLOAT", w * h * 4, frame.ravel())
-        cached = (serial, gpu.types.GPUTexture((w, h), format="RGBA16F", data=pixels))
+        texture = gpu.types.GPUTexture((w, h), format="RGBA16F", data=pixels)
+        texture.filter_mode(True)   # a coarse frame (moving, refining) upscaled bilinearly, not in blocks
+        cached = (serial, texture)
         engine.viewport_texture = cached
     gpu.state.blend_set("ALPHA_PREMULT")
     engine.bind_display_space_shader(scene)
