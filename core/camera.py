@@ -94,7 +94,7 @@ def crop(camera, width, height, x0, y0, w, h):
                    shift_x=sx, shift_y=sy)
 
 
-def generate_rays(camera, width, height, pixel_xy, lens_u=None):
+def generate_rays(camera, width, height, pixel_xy, lens_u=None, time_u=None):
     """Rays through film positions pixel_xy (N, 2) in pixel units (x + 0.5 is a centre).
 
     lens_u: (N, 2) uniforms for the lens position when the camera has depth
@@ -106,7 +106,12 @@ def generate_rays(camera, width, height, pixel_xy, lens_u=None):
     to clip_start along the ray. A panoramic camera's film positions outside
     its lens get tmax 0 (no ray: Accel reports a miss, the camera passes
     leave them black).
+
+    time_u: (N,) uniforms for each ray's time over the shutter when the
+    camera moves (camera.motion); None renders the frame's camera.
     """
+    if time_u is not None and getattr(camera, "motion", None) is not None:
+        return _moving_rays(camera, width, height, pixel_xy, lens_u, time_u)
     if panorama.is_panorama(camera):
         return _panorama_rays(camera, width, height, pixel_xy)
     size, view = pixel_size(camera, width, height)
@@ -149,6 +154,18 @@ def generate_rays(camera, width, height, pixel_xy, lens_u=None):
         tmax = (camera.clip_end - camera.clip_start) * length
     return (origins.astype(np.float32), np.ascontiguousarray(d, dtype=np.float32),
             np.maximum(tmax, 1e-6).astype(np.float32))
+
+
+def _moving_rays(camera, width, height, pixel_xy, lens_u, time_u):
+    """generate_rays of a camera that moves over the shutter: the rays in its
+    own frame, then each moved by the camera at its time."""
+    from .motion import rigid_at
+    still = replace(camera, to_world=np.eye(4, dtype=np.float32), motion=None)
+    o, d, tmax = generate_rays(still, width, height, pixel_xy, lens_u)
+    r, t = rigid_at(camera.motion, time_u)
+    o = np.einsum("nij,nj->ni", r, o.astype(np.float64)) + t
+    d = np.einsum("nij,nj->ni", r, d.astype(np.float64))
+    return o.astype(np.float32), np.ascontiguousarray(d, dtype=np.float32), tmax
 
 
 def _panorama_rays(camera, width, height, pixel_xy):

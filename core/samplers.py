@@ -17,7 +17,7 @@ _S30, _S27, _S31 = np.uint64(30), np.uint64(27), np.uint64(31)
 _TO_UNIT = np.float32(1.0 / (1 << 24))
 
 # Dimension layout.
-DIM_CAMERA = 0            # pixel filter (2) + lens (2)
+DIM_CAMERA = 0            # pixel filter (2) + lens (2) + time over the shutter (1)
 DIM_BOUNCE_BASE = 8       # first dimension used by bounce 0
 DIMS_PER_BOUNCE = 8
 # Offsets within a bounce's block.
@@ -78,6 +78,15 @@ def uniform2(seeds, dim):
     out[:, 0] = uniform(seeds, dim)
     out[:, 1] = uniform(seeds, dim + 1)
     return out
+
+
+def time_uniforms(camera, seeds):
+    """(N,) uniforms for the time of camera rays over the shutter (the
+    camera's dimension after the lens'), or None for a camera that does not
+    move (core/motion.py)."""
+    if getattr(camera, "motion", None) is None:
+        return None
+    return uniform(seeds, DIM_CAMERA + 4)
 
 
 def lens_uniforms(camera, seeds):

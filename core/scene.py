@@ -168,6 +168,10 @@ class Camera:
     fisheye_fov: float = np.pi
     fisheye_lens: float = 10.5
     pano_region: tuple = None
+    # Motion blur (core/motion.py): the camera's matrices (K, 4, 4) at K
+    # evenly spaced times over the shutter, None without blur; to_world stays
+    # the frame's (depth, reprojection).
+    motion: np.ndarray = None
 
 
 @dataclass

@@ -37,6 +37,7 @@ from ..core.restir import ReSTIRSettings
 from . import memory, state
 from .export.camera import export_camera, render_region, render_size
 from .memory import SceneTooLarge
+from .motion_blur import camera_motion
 from .passes import NOISY, PASSES
 
 UPDATE_INTERVAL = 1.0   # seconds between progressive result updates
@@ -326,6 +327,16 @@ def view_camera(engine, depsgraph, view, warn):
     return camera
 
 
+def moving_camera(engine, depsgraph, warn):
+    """The scene camera with its motion over the shutter (motion_blur.py),
+    or None (the frame's camera) without motion blur."""
+    motion = camera_motion(engine, depsgraph, warn)
+    if motion is None:
+        return None
+    camera = export_camera(depsgraph, warn, region=True)
+    return None if camera is None else replace(camera, motion=motion)
+
+
 def render(engine, depsgraph):
     """A frame: every view of it (one without stereoscopy), each into a
     result of its own; the export's warnings are reported with the first."""
@@ -372,9 +383,13 @@ def _render_view(engine, depsgraph, view, report=True, stream=None, preview=Fals
         continuing = engine.is_animation and stream.last_frame == scene.frame_current - 1
         frame_scene = stream.frame_scene
         # A later view of the frame changes only the camera of the exported scene.
-        has_camera = frame_scene.update(depsgraph, width, height,
-                                        view_camera(engine, depsgraph, view, frame_scene.warnings),
-                                        camera_only=not report)
+        camera = view_camera(engine, depsgraph, view, frame_scene.warnings)
+        blur_notes = []
+        if view is None and not preview and scene.restir_gi.mode == "PATH":
+            camera = moving_camera(engine, depsgraph, blur_notes.append)
+        has_camera = frame_scene.update(depsgraph, width, height, camera, camera_only=not report)
+        for text in blur_notes:        # after the update, which may start its warnings over
+            frame_scene.warnings(text)
         for text in frame_scene.new_warnings(repeat=not continuing) if report and not preview else ():
             engine.report({"WARNING"}, text)
         core_scene, ctx = frame_scene.scene, frame_scene.context

@@ -105,6 +105,7 @@ def test_camera_depth_of_field(addon):
     assert math.isclose(export(addon, 16, 16).camera.aperture_size, 0.25, rel_tol=1e-6)
     warnings = []
     scene.render.use_motion_blur = True
+    scene.restir_gi.mode = "RESTIR_BIASED"      # motion blur renders in Path Tracing only
     addon.restir_addon.export.camera.export_camera(bpy.context.evaluated_depsgraph_get(), warnings.append)
     assert any("Motion blur" in w for w in warnings)
     assert "RESTIR_GI" in bpy.types.DATA_PT_camera_dof.COMPAT_ENGINES

@@ -160,7 +160,8 @@ def camera_pass(ctx, width, height, seed, frame, sample, max_bounces, pixel_filt
     # points, scrambled per pixel and frame: each uniform, together evenly
     # spread (as Cycles' pattern), so edges and direct light converge faster.
     xy += pixel_filter.offsets(samplers.sobol_jitter(samplers.hash_keys(seed, frame, pix, CAMERA_JITTER), sample))
-    o, d, tmax = generate_rays(scene.camera, width, height, xy, samplers.lens_uniforms(scene.camera, seeds))
+    o, d, tmax = generate_rays(scene.camera, width, height, xy, samplers.lens_uniforms(scene.camera, seeds),
+                               samplers.time_uniforms(scene.camera, seeds))
     hits = ctx.accel.intersect_closest(o, d, tmax, camera=True)
     media = media_of(scene, ctx.eps)
     if media is not None:
