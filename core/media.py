@@ -21,6 +21,7 @@ by the mean over channels of their pdfs (spectral MIS), so chromatic media
 stay unbiased. Emission along the ray is integrated in closed form.
 """
 
+import threading
 from dataclasses import dataclass
 
 import numpy as np
@@ -103,36 +104,56 @@ class Media:
 
     def along(self, o, d, t_end):
         """Intervals of the segments o + t d, 0 < t < t_end (inf: the ray
-        leaves the scene)."""
-        t, b = self.crossings(o, d)
-        n, k = t.shape
+        leaves the scene). Only rays that cross a boundary are worked on:
+        the others meet no medium."""
+        t_all, b_all = self.crossings(o, d)
+        end_all = np.asarray(t_end, np.float64).reshape(-1)
+        n = len(end_all)
+        rows = np.nonzero((b_all >= 0).any(axis=1))[0]
+        k = int((b_all[rows] >= 0).sum(axis=1).max(initial=0))
+        t, b = t_all[rows, :k], b_all[rows, :k]
+        m = len(rows)
         valid = b >= 0
         bb = np.maximum(b, 0)
-        enter = (np.einsum("nkj,nj->nk", self.normals[bb], np.asarray(d, np.float32)) < 0) & valid
-        c = np.where(valid[..., None], self.coeff[bb], 0.0)
+        enter = (np.einsum("nkj,nj->nk", self.normals[bb], np.asarray(d, np.float32)[rows]) < 0) & valid
+        c = np.where(valid[..., None], self.coeff[bb], np.float32(0))
         obj = np.where(valid, self.obj[bb], -1)
         # Inside at the origin: the first crossing of an object leaves it.
         first = valid.copy()
         for j in range(1, k):
             first[:, j] &= ~((obj[:, :j] == obj[:, j:j + 1]) & valid[:, :j]).any(axis=1)
         start = (c * (first & ~enter & valid)[..., None]).sum(axis=1)
-        sign = np.where(enter, 1.0, -1.0)[..., None] * valid[..., None]
+        sign = np.where(enter, np.float32(1), np.float32(-1))[..., None] * valid[..., None]
         vals = np.concatenate([start[:, None, :], start[:, None, :] + np.cumsum(sign * c, axis=1)], axis=1)
         # Past the last crossing the ray is outside every object.
-        last = valid.sum(axis=1)
-        vals[np.arange(n), last] = 0.0
+        vals[np.arange(m), valid.sum(axis=1)] = 0.0
         vals[..., :9] = np.maximum(vals[..., :9], 0.0)     # (the last column, sigma_s x g, has a sign)
-        end = np.asarray(t_end, np.float64)
-        bounds = np.concatenate([np.zeros((n, 1)), np.minimum(t, end[:, None]), end[:, None]], axis=1)
-        return Intervals(bounds, vals.astype(np.float64))
+        end = end_all[rows]
+        bounds = np.concatenate([np.zeros((m, 1)), np.minimum(t, end[:, None]), end[:, None]], axis=1)
+        return Intervals(bounds, vals.astype(np.float64), rows, end_all)
 
 
 @dataclass
 class Intervals:
-    """Piecewise constant coefficients along rays: bounds (N, K + 2) and
-    values (N, K + 1, C) between them."""
+    """Piecewise constant coefficients along the rays ``rows`` of a batch
+    that cross media boundaries: bounds (M, K + 2) and values (M, K + 1, C)
+    between them; ``end`` (N,): every ray's segment end. The other rays meet
+    no medium."""
     bounds: np.ndarray
     vals: np.ndarray
+    rows: np.ndarray = None
+    end: np.ndarray = None
+
+    @property
+    def n(self):
+        return len(self.bounds) if self.rows is None else len(self.end)
+
+    def _expand(self, sub, fill):
+        if self.rows is None:
+            return sub
+        out = np.full((self.n,) + sub.shape[1:], fill, sub.dtype)
+        out[self.rows] = sub
+        return out
 
     def _lengths(self):
         with np.errstate(invalid="ignore"):
@@ -149,7 +170,7 @@ class Intervals:
 
     def transmittance(self):
         """(N, 3) float32 transmittance over each whole segment."""
-        return np.exp(-self._depths()[:, -1]).astype(np.float32)
+        return self._expand(np.exp(-self._depths()[:, -1]).astype(np.float32), 1.0)
 
     def emission(self):
         """(N, 3) float32 emitted radiance arriving at the origins: the
@@ -161,13 +182,21 @@ class Intervals:
             share = np.where(x > 1e-6, -np.expm1(-x) / np.where(st > 0, st, 1.0), length[..., None])
             share = np.where(np.isfinite(share), share, np.where(st > 0, 1.0 / np.where(st > 0, st, 1.0), 0.0))
             out = (np.exp(-self._depths()[:, :-1]) * em * share).sum(axis=1)
-        return np.nan_to_num(out, nan=0.0, posinf=0.0).astype(np.float32)
+        return self._expand(np.nan_to_num(out, nan=0.0, posinf=0.0).astype(np.float32), 0.0)
 
     def sample(self, u_channel, u_distance):
         """Free-flight distances: (scattered (N,) bool, t (N,), weight (N, 3),
         sigma_s (N, 3) and g (N,) at the scattering point). weight is
         transmittance x sigma_s over the mean pdf where scattered, else the
         transmittance to the segment's end over its mean."""
+        if self.rows is not None:
+            sub = Intervals(self.bounds, self.vals)
+            r = self.rows
+            scat, t, w, ss, g = sub.sample(np.asarray(u_channel)[r], np.asarray(u_distance)[r])
+            out_t = self.end.astype(np.float32)
+            out_t[r] = t
+            return (self._expand(scat, False), out_t, self._expand(w, 1.0), self._expand(ss, 0.0),
+                    self._expand(np.asarray(g, np.float64), 0.0))
         n = len(self.bounds)
         tau = self._depths()                                     # (N, K + 2, 3)
         ch = np.minimum((np.asarray(u_channel) * 3).astype(np.int64), 2)
@@ -228,26 +257,27 @@ def hg_sample(d, g, u):
 
 
 _CACHE = {}
+_LOCK = threading.Lock()
 
 
 def media_of(scene, eps):
-    """The scene's Media (cached per scene geometry and graphs), None
-    without media."""
+    """The scene's Media (cached per scene geometry and graphs: the passes
+    of a frame, on either worker thread, share one), None without media."""
     volumes = graph_media(getattr(scene, "shaders", None))
     if not volumes or getattr(scene, "face_normals", None) is None:
         return None
     key = (id(scene.vertices), id(scene.triangles), id(scene.material_ids), len(scene.triangles),
            tuple(sorted((i, tuple(coefficients(v))) for i, v in volumes.items())))
-    cached = _CACHE.get(id(scene))
-    if cached is not None and cached[0] == key:
-        return cached[1]
-    media = Media(scene, volumes, eps)
-    if media.empty:
-        media.close()
-        media = None
-    for k in list(_CACHE):      # one scene at a time
-        if _CACHE[k][1] is not None:
-            _CACHE[k][1].close()
-        del _CACHE[k]
-    _CACHE[id(scene)] = (key, media)
-    return media
+    with _LOCK:
+        cached = _CACHE.get(id(scene))
+        if cached is not None and cached[0] == key:
+            return cached[1]
+        media = Media(scene, volumes, eps)
+        if media.empty:
+            media.close()
+            media = None
+        # One scene at a time: the previous scene's boundaries are let go
+        # (not closed: a pass of it may still be tracing them).
+        _CACHE.clear()
+        _CACHE[id(scene)] = (key, media)
+        return media
