@@ -174,7 +174,7 @@ def _panorama_rays(camera, width, height, pixel_xy):
     pos, axes = _frame(camera)
     local, inside = panorama.local_directions(camera, width, height, np.asarray(pixel_xy, np.float64))
     local[~inside] = (1.0, 0.0, 0.0)
-    d = matmul3(panorama.to_camera_frame(local), axes.T)
+    d = matmul3(panorama.to_camera_frame(local, camera.panorama_type), axes.T)
     d /= np.maximum(np.linalg.norm(d, axis=1), 1e-30)[:, None]
     origins = pos + d * camera.clip_start
     tmax = np.where(inside, max(camera.clip_end - camera.clip_start, 1e-6), 0.0)
@@ -189,7 +189,7 @@ def project(camera, width, height, points):
     if panorama.is_panorama(camera):
         pos, axes = _frame(camera)
         local = matmul3(np.asarray(points, np.float64) - pos, axes)
-        film = panorama.local_to_film(camera, width, height, panorama.from_camera_frame(local))
+        film = panorama.local_to_film(camera, width, height, panorama.from_camera_frame(local, camera.panorama_type))
         return film.astype(np.float32), np.linalg.norm(local, axis=1).astype(np.float32)
     size, view = pixel_size(camera, width, height)
     pos, axes = _frame(camera)

@@ -167,6 +167,16 @@ class Camera:
     longitude_max: float = np.pi
     fisheye_fov: float = np.pi
     fisheye_lens: float = 10.5
+    fisheye_polynomial_k0: float = 0.0      # lens polynomial fisheye: theta = -(k0 + k1 r + ... + k4 r^4)
+    fisheye_polynomial_k1: float = -0.02
+    fisheye_polynomial_k2: float = 0.0
+    fisheye_polynomial_k3: float = 0.0
+    fisheye_polynomial_k4: float = 0.0
+    central_cylindrical_range_u_min: float = -np.pi
+    central_cylindrical_range_u_max: float = np.pi
+    central_cylindrical_range_v_min: float = -1.0
+    central_cylindrical_range_v_max: float = 1.0
+    central_cylindrical_radius: float = 1.0
     pano_region: tuple = None
     # Motion blur (core/motion.py): the camera's matrices (K, 4, 4) at K
     # evenly spaced times over the shutter, None without blur; to_world stays

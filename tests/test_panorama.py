@@ -1,5 +1,6 @@
-"""Panoramic cameras (core/panorama.py): Cycles' equirectangular and fisheye
-projections against Cycles' renders of the same scene, the export of their
+"""Panoramic cameras (core/panorama.py): Cycles' equirectangular, fisheye,
+mirror ball, central cylindrical and cube map face projections against
+Cycles' renders of the same scene, the export of their
 settings, and the ReSTIR modes with a panoramic camera (reprojection through
 the panorama's inverse mapping), which must stay finite and near the path
 tracer.
@@ -24,6 +25,13 @@ CASES = {
     "fisheye_equidistant": (48, 40, dict(panorama_type="FISHEYE_EQUIDISTANT", fisheye_fov=math.radians(200))),
     "fisheye_equisolid": (48, 32, dict(panorama_type="FISHEYE_EQUISOLID", fisheye_fov=math.radians(170),
                                        fisheye_lens=9.0, sensor_width=30.0)),
+    "fisheye_lens_polynomial": (48, 32, dict(panorama_type="FISHEYE_LENS_POLYNOMIAL", fisheye_fov=math.radians(190),
+                                             fisheye_polynomial_k1=-0.06, fisheye_polynomial_k2=-0.0004)),
+    "mirror_ball": (40, 40, dict(panorama_type="MIRRORBALL")),
+    "central_cylindrical": (48, 32, dict(panorama_type="CENTRAL_CYLINDRICAL", central_cylindrical_range_u_min=-2.0,
+                                         central_cylindrical_range_u_max=2.5, central_cylindrical_range_v_min=-0.8,
+                                         central_cylindrical_range_v_max=1.2, central_cylindrical_radius=1.5)),
+    "cubemap_face": (40, 40, dict(panorama_type="EQUIANGULAR_CUBEMAP_FACE")),
 }
 
 
@@ -72,7 +80,7 @@ def test_panorama_matches_cycles(addon, case):
           f"ratio {r['ratio']:.4f} block chi {r['chi']:.2f}")
     assert abs(r["ratio"] - 1.0) < 0.02
     assert r["chi"] < 2.5
-    if case.startswith("fisheye"):      # outside the lens: black in both
+    if case in ("fisheye_equidistant", "fisheye_equisolid", "mirror_ball"):      # outside the lens: black in both
         assert (r["ours"][0, 0] == 0).all() and (r["cycles"][0, 0] == 0).all()
 
 
@@ -107,14 +115,13 @@ def test_panorama_export_and_warnings(addon):
     assert (c.projection, c.panorama_type) == ("PANO", "FISHEYE_EQUISOLID")
     assert math.isclose(c.fisheye_fov, 2.5, rel_tol=1e-6) and math.isclose(c.fisheye_lens, 8.0, rel_tol=1e-6)
     warnings = []
-    for kind in ("MIRRORBALL", "EQUIRECTANGULAR"):
-        cam.data.panorama_type = kind
-        cam.data.dof.use_dof = kind == "EQUIRECTANGULAR"
-        bpy.context.view_layer.update()
-        c = addon.restir_addon.export.camera.export_camera(bpy.context.evaluated_depsgraph_get(), warnings.append)
-        assert c.panorama_type == "EQUIRECTANGULAR"
-    assert any("MIRRORBALL" in w for w in warnings)
-    assert any("Depth of field" in w for w in warnings)
+    cam.data.panorama_type = "CENTRAL_CYLINDRICAL"
+    cam.data.central_cylindrical_radius = 2.0
+    cam.data.dof.use_dof = True
+    bpy.context.view_layer.update()
+    c = addon.restir_addon.export.camera.export_camera(bpy.context.evaluated_depsgraph_get(), warnings.append)
+    assert c.panorama_type == "CENTRAL_CYLINDRICAL" and c.central_cylindrical_radius == 2.0
+    assert c.aperture_size == 0 and any("Depth of field" in w for w in warnings)
 
 
 def test_panorama_round_trip_and_region():
@@ -125,7 +132,8 @@ def test_panorama_round_trip_and_region():
     from core.scene import Camera
     rng = np.random.default_rng(3)
     xy = rng.uniform(0, 1, (2000, 2)) * [60, 36]
-    for kind in ("EQUIRECTANGULAR", "FISHEYE_EQUIDISTANT", "FISHEYE_EQUISOLID"):
+    for kind in ("EQUIRECTANGULAR", "FISHEYE_EQUIDISTANT", "FISHEYE_EQUISOLID", "FISHEYE_LENS_POLYNOMIAL",
+                 "MIRRORBALL", "CENTRAL_CYLINDRICAL", "EQUIANGULAR_CUBEMAP_FACE"):
         cam = Camera(projection="PANO", panorama_type=kind, latitude_min=-1.2, latitude_max=1.0,
                      longitude_min=-2.5, longitude_max=2.9, fisheye_fov=3.5, fisheye_lens=8.0,
                      to_world=np.array([[0, 0, 1, 1], [1, 0, 0, 2], [0, 1, 0, 3], [0, 0, 0, 1]], np.float32))
@@ -140,7 +148,9 @@ def test_panorama_round_trip_and_region():
         _, d3, _ = generate_rays(cam, 60, 36, xy[:50] / 3 + [10, 6])
         np.testing.assert_allclose(d2, d3, atol=1e-6)
         bad = Camera(projection="PANO", panorama_type=kind, latitude_min=0.3, latitude_max=0.3,
-                     longitude_min=1.0, longitude_max=1.0, fisheye_fov=0.0, fisheye_lens=0.0)
+                     longitude_min=1.0, longitude_max=1.0, fisheye_fov=0.0, fisheye_lens=0.0,
+                     fisheye_polynomial_k1=0.0, central_cylindrical_radius=0.0,
+                     central_cylindrical_range_u_min=1.0, central_cylindrical_range_u_max=1.0)
         o, d, tmax = generate_rays(bad, 60, 36, xy)
         film, depth = project(bad, 60, 36, o + d)
         assert np.isfinite(o).all() and np.isfinite(d).all() and np.isfinite(tmax).all()

@@ -78,9 +78,9 @@ def _export_camera(depsgraph, warn):
 
 
 def panorama_settings(data, warn):
-    """core.Camera fields of a panoramic camera (core/panorama.py). Types
-    other than equirectangular and the equidistant and equisolid fisheyes
-    render as equirectangular, with a warning; so does depth of field."""
+    """core.Camera fields of a panoramic camera (core/panorama.py). A type
+    this engine does not know renders as equirectangular, with a warning;
+    depth of field is left out, with a warning."""
     kind = getattr(data, "panorama_type", "FISHEYE_EQUISOLID")
     if kind not in PANORAMA_TYPES:
         warn(f"Panorama type '{kind}' is not supported; rendering as equirectangular")
@@ -91,7 +91,11 @@ def panorama_settings(data, warn):
     return dict(panorama_type=kind, latitude_min=get("latitude_min", -np.pi / 2),
                 latitude_max=get("latitude_max", np.pi / 2), longitude_min=get("longitude_min", -np.pi),
                 longitude_max=get("longitude_max", np.pi), fisheye_fov=get("fisheye_fov", np.pi),
-                fisheye_lens=get("fisheye_lens", 10.5))
+                fisheye_lens=get("fisheye_lens", 10.5),
+                **{f"fisheye_polynomial_k{i}": get(f"fisheye_polynomial_k{i}", 0.0) for i in range(5)},
+                **{f"central_cylindrical_range_{k}": get(f"central_cylindrical_range_{k}", d)
+                   for k, d in (("u_min", -np.pi), ("u_max", np.pi), ("v_min", -1.0), ("v_max", 1.0))},
+                central_cylindrical_radius=get("central_cylindrical_radius", 1.0))
 
 
 def depth_of_field(cam_obj, data):
