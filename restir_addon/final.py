@@ -406,16 +406,22 @@ def _render_view(engine, depsgraph, view, report=True, stream=None, preview=Fals
         if not (lit or scene_environment(core_scene) is not None or emissive):
             engine.report({"WARNING"}, "The scene has no light source (no lights, emissive "
                                        "materials or world light): the image is black")
+        # Volumes are path-traced (core/integrators/media_path.py): a ReSTIR
+        # mode renders a frame with media as Path Tracing with its warm-up
+        # frames as samples, rather than leave them out.
+        media_samples = None
         if not preview and scene.restir_gi.mode != "PATH" and media_of(core_scene, ctx.eps) is not None:
-            engine.report({"WARNING"}, "Volumes render in Path Tracing mode only; this mode leaves them out")
+            media_samples = max(1, int(scene.restir_gi.warmup_frames))
+            engine.report({"WARNING"}, f"Volumes: the ReSTIR modes render a frame with volumes by Path Tracing "
+                                       f"({media_samples} samples, the warm-up frames)")
         read_s, apply_s = frame_scene.timings
         export_s = read_s + apply_s
         trace_before, rays_before = ctx.accel.trace_seconds, ctx.accel.rays_traced
         t1 = time.perf_counter()
         if preview:
             images = _render_path(engine, ctx, scene, result, width, height, export_s, PREVIEW_SAMPLES)
-        elif scene.restir_gi.mode == "PATH":
-            images = _render_path(engine, ctx, scene, result, width, height, export_s)
+        elif scene.restir_gi.mode == "PATH" or media_samples:
+            images = _render_path(engine, ctx, scene, result, width, height, export_s, media_samples)
         else:
             if engine.is_animation and not _next_frame(engine, stream, scene):
                 if not _chunk_warmup(engine, depsgraph, stream, width, height, view):
