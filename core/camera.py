@@ -113,7 +113,7 @@ def generate_rays(camera, width, height, pixel_xy, lens_u=None, time_u=None):
     if time_u is not None and getattr(camera, "motion", None) is not None:
         return _moving_rays(camera, width, height, pixel_xy, lens_u, time_u)
     if panorama.is_panorama(camera):
-        return _panorama_rays(camera, width, height, pixel_xy)
+        return _panorama_rays(camera, width, height, pixel_xy, lens_u)
     size, view = pixel_size(camera, width, height)
     pos, axes = _frame(camera)
     x = (pixel_xy[:, 0] - 0.5 * width + camera.shift_x * view) * size
@@ -168,15 +168,27 @@ def _moving_rays(camera, width, height, pixel_xy, lens_u, time_u):
     return o.astype(np.float32), np.ascontiguousarray(d, dtype=np.float32), tmax
 
 
-def _panorama_rays(camera, width, height, pixel_xy):
-    """generate_rays of a panoramic camera (a pinhole: Cycles' depth of
-    field for panoramas is not reproduced; the export warns)."""
+def _panorama_rays(camera, width, height, pixel_xy, lens_u=None):
+    """generate_rays of a panoramic camera. Depth of field as Cycles does it
+    for panoramas: the lens point in the plane across each pinhole ray,
+    aimed at the point focus_distance along it."""
     pos, axes = _frame(camera)
     local, inside = panorama.local_directions(camera, width, height, np.asarray(pixel_xy, np.float64))
     local[~inside] = (1.0, 0.0, 0.0)
-    d = matmul3(panorama.to_camera_frame(local, camera.panorama_type), axes.T)
+    start = np.zeros_like(local)
+    if lens_u is not None and camera.aperture_size > 0:
+        lens = aperture_points(camera, lens_u)
+        u_axis = np.array([1.0, 0.0, 0.0]) - local[:, :1] * local
+        length = np.linalg.norm(u_axis, axis=1, keepdims=True)
+        u_axis = np.where(length > 1e-9, u_axis / np.maximum(length, 1e-30), np.array([0.0, 1.0, 0.0]))
+        v_axis = np.cross(local, u_axis)
+        start = u_axis * lens[:, :1] + v_axis * lens[:, 1:2]
+        aim = local * max(float(camera.focus_distance), 1e-5) - start
+        local = aim / np.maximum(np.linalg.norm(aim, axis=1, keepdims=True), 1e-30)
+    kind = camera.panorama_type
+    d = matmul3(panorama.to_camera_frame(local, kind), axes.T)
     d /= np.maximum(np.linalg.norm(d, axis=1), 1e-30)[:, None]
-    origins = pos + d * camera.clip_start
+    origins = pos + matmul3(panorama.to_camera_frame(start, kind), axes.T) + d * camera.clip_start
     tmax = np.where(inside, max(camera.clip_end - camera.clip_start, 1e-6), 0.0)
     return (origins.astype(np.float32), np.ascontiguousarray(d, dtype=np.float32), tmax.astype(np.float32))
 

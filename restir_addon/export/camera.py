@@ -73,20 +73,17 @@ def _export_camera(depsgraph, warn):
         shift_y=float(data.shift_y),
         clip_start=float(data.clip_start),
         clip_end=float(data.clip_end),
-        **(pano if projection == "PANO" else depth_of_field(cam_obj, data)),
+        **pano, **depth_of_field(cam_obj, data),
     )
 
 
 def panorama_settings(data, warn):
-    """core.Camera fields of a panoramic camera (core/panorama.py). A type
-    this engine does not know renders as equirectangular, with a warning;
-    depth of field is left out, with a warning."""
+    """core.Camera fields of a panoramic camera (core/panorama.py); a type
+    this engine does not know renders as equirectangular, with a warning."""
     kind = getattr(data, "panorama_type", "FISHEYE_EQUISOLID")
     if kind not in PANORAMA_TYPES:
         warn(f"Panorama type '{kind}' is not supported; rendering as equirectangular")
         kind = "EQUIRECTANGULAR"
-    if data.dof.use_dof:
-        warn("Depth of field with a panoramic camera is not supported; rendering without it")
     get = lambda name, default: float(getattr(data, name, default))    # noqa: E731
     return dict(panorama_type=kind, latitude_min=get("latitude_min", -np.pi / 2),
                 latitude_max=get("latitude_max", np.pi / 2), longitude_min=get("longitude_min", -np.pi),
