@@ -266,7 +266,10 @@ def media_of(scene, eps):
     volumes = graph_media(getattr(scene, "shaders", None))
     if not volumes or getattr(scene, "face_normals", None) is None:
         return None
+    # (versions: the geometry's change counter, which moves when an object
+    # moves in place in the same arrays: the viewport, animation frames)
     key = (id(scene.vertices), id(scene.triangles), id(scene.material_ids), len(scene.triangles),
+           getattr(scene, "versions", None),
            tuple(sorted((i, tuple(coefficients(v))) for i, v in volumes.items())))
     with _LOCK:
         cached = _CACHE.get(id(scene))

@@ -124,6 +124,20 @@ def test_volume_in_restir_mode(addon, reports):
     assert any("by Path Tracing" in w for w in reports.of("WARNING")), reports.log
 
 
+def test_moved_volume_follows(addon):
+    """A render after the fog box moved (the engine keeps its scene between
+    renders and moves objects in place) has the medium where the box is now."""
+    kind, inputs = CASES["principled"]
+    scene = _stage()
+    mat, _ = _volume_material("fog", kind, **inputs)
+    box = _box("Fog", (-1.0, -1.0, 0.02), (1.0, 1.0, 2.0), mat)
+    from blender_util import render_image, setup_restir
+    setup_restir(scene, 4, 1, BOUNCES)
+    render_image(scene)
+    box.location.x = 1.5
+    _compare(scene, "moved fog box")
+
+
 def test_volume_can_fail(addon):
     """The comparison fails when the medium is off: twice the density here
     against Cycles' is far outside the tolerance."""
