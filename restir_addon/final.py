@@ -21,12 +21,11 @@ render never dies with a traceback.
 
 import time
 import traceback
-from dataclasses import replace
 
 import numpy as np
 
 from ..core import RenderSettings, render_frame
-from ..core.camera import camera_space_normals, crop
+from ..core.camera import camera_space_normals
 from ..core.errors import describe
 from ..core.environment import scene_environment
 from ..core.film import to_rgba
@@ -35,9 +34,9 @@ from ..core.media import media_of
 from ..core.render import render_restir
 from ..core.restir import ReSTIRSettings
 from . import memory, state
-from .export.camera import export_camera, render_region, render_size
+from .export.camera import render_region
 from .memory import SceneTooLarge
-from .motion_blur import camera_motion
+from .render_camera import moving_camera, view_camera, view_names
 from .passes import NOISY, PASSES
 
 UPDATE_INTERVAL = 1.0   # seconds between progressive result updates
@@ -294,47 +293,6 @@ def _render_restir(engine, ctx, scene, stream, width, height, export_s):
     if done[0] < frames:
         engine.report({"INFO"}, f"Render cancelled after {done[0]} of {frames} frames of resampling")
     return frame_images(out, width, height, ctx.scene.camera)
-
-
-def view_names(scene):
-    """The views to render: [None] without stereoscopy; left and right for
-    Stereo 3D; the enabled views for Multi-View."""
-    r = scene.render
-    if not r.use_multiview:
-        return [None]
-    if r.views_format == "STEREO_3D":
-        return ["left", "right"]
-    return [v.name for v in r.views if v.use] or [None]
-
-
-def view_camera(engine, depsgraph, view, warn):
-    """core.Camera of one view of the scene camera (Blender's stereo rig:
-    the view's matrix and shift from the engine), or None for the camera
-    itself (view None)."""
-    if view is None:
-        return None
-    scene = depsgraph.scene
-    cam_obj = scene.camera
-    base = export_camera(depsgraph, warn)
-    if base is None or cam_obj is None or cam_obj.type != "CAMERA":
-        return base
-    engine.active_view_set(view)
-    matrix = np.array(engine.camera_model_matrix(cam_obj, use_spherical_stereo=False), np.float32).reshape(4, 4)
-    camera = replace(base, to_world=matrix,
-                     shift_x=float(engine.camera_shift_x(cam_obj, use_spherical_stereo=False)))
-    if scene.render.use_border:
-        camera = crop(camera, *render_size(scene), *render_region(scene))
-    return camera
-
-
-def moving_camera(engine, depsgraph, warn):
-    """The scene camera with its motion over the shutter (motion_blur.py),
-    or None (the frame's camera) without motion blur."""
-    motion = camera_motion(engine, depsgraph, warn)
-    if motion is None:
-        return None
-    camera = export_camera(depsgraph, warn, region=True)
-    return None if camera is None else replace(camera, motion=motion)
 
 
 def render(engine, depsgraph):
