@@ -107,10 +107,10 @@ def _clear_boxes():
 
 
 def point_cloud(scene):
-    """Spheres of radii 0.05-0.25 x 0.35 (a geometry nodes Mesh to Points)
+    """Spheres of radii 0.05-0.25 x 0.6 (a geometry nodes Mesh to Points)
     in place of the boxes."""
     _clear_boxes()
-    point_cloud_object(centre=(0.0, 0.0, 0.0), scale=0.35)
+    point_cloud_object(centre=(0.0, 0.1, 0.0), scale=0.6)
 
 
 def hair(scene):
