@@ -8,13 +8,15 @@ per export, with numpy:
   20, 80 or 320 triangles, fewer for large clouds), scaled so its surface
   area is the sphere's (so its silhouette's mean area is too: Cauchy's
   formula), with the sphere's normals at its corners;
-- every curve a tube of ``sides`` sides along its polyline, rings kept from
-  twisting by parallel transport, the radius of each point scaled so the
+- every curve a tube of ``sides`` sides along the Catmull-Rom spline
+  through its points (sampled between them), rings kept from twisting by
+  parallel transport, the radius of each point scaled so the
   polygon's perimeter is the circle's (again the same mean silhouette), with
-  the tube's normals at its corners. Open ends.
+  the tube's normals at its corners, and round ends (a ring at 45 degrees
+  and a tip), as Cycles' swept-sphere curves have.
 
-Cycles' curves follow a Catmull-Rom spline through the points; the polyline
-is the same where points are dense or strands straight.
+Cycles' curves follow a Catmull-Rom spline through the points, with the
+end points repeated; so do the tubes, at the points the spline is sampled.
 
 Bad input is dropped, never passed on: points of zero, negative or
 non-finite radius or position; curves of fewer than two usable points.
@@ -106,13 +108,106 @@ def _any_perpendicular(t):
     return np.stack([1.0 + sign * t[:, 0] * t[:, 0] * a, sign * b, -sign * t[:, 0]], axis=1)
 
 
-def tubes(points, radii, offsets, sides=None):
+def catmull_rom(p, r, curve, counts, steps):
+    """The curves through points p (N, 3) with radii r (N,) (curve: each
+    point's curve, counts: the points per curve, in order) with ``steps``
+    points added in each segment on the uniform Catmull-Rom spline through
+    them (end points repeated, as Cycles does), radii along the same spline.
+    Returns (p, r, curve, counts)."""
+    n = len(p)
+    start = np.repeat(np.concatenate([[0], np.cumsum(counts)[:-1]]), counts)
+    end = start + np.repeat(counts, counts) - 1
+    i = np.arange(n)
+    seg = i[i < end]                            # segments from point i to i + 1
+    pr = np.concatenate([p, r[:, None]], axis=1)
+    a, b = pr[np.maximum(seg - 1, start[seg])], pr[seg]
+    c, d = pr[seg + 1], pr[np.minimum(seg + 2, end[seg])]
+    t = (np.arange(1, steps + 1) / (steps + 1))[None, :, None]
+    inner = 0.5 * (2 * b[:, None] + (c - a)[:, None] * t + (2 * a - 5 * b + 4 * c - d)[:, None] * t * t
+                   + (3 * b - a - 3 * c + d)[:, None] * t * t * t)           # (S, steps, 4)
+    # Each segment's first point, then its inner points; each curve's last point after them.
+    out = np.concatenate([b[:, None], inner], axis=1).reshape(-1, 4)
+    owner = np.repeat(seg, steps + 1)
+    last = i[i == end]
+    out = np.concatenate([out, pr[last]])
+    owner = np.concatenate([owner, last])
+    order = np.argsort(owner, kind="stable")
+    out = out[order]
+    new_curve = curve[owner[order]]
+    new_counts = counts + (counts - 1) * steps
+    return out[:, :3], np.maximum(out[:, 3], 0.0), new_curve, new_counts
+
+
+MAX_SPLINE_STEPS = 8
+SPLINE_POINTS = 2000000         # spline points at most (of all curves of an object)
+
+
+def spline_steps(points, offsets):
+    """Points to add in each segment along the spline: enough that the
+    curves' turns (the 90th percentile of the angles between consecutive
+    segments) take about 5 degrees a step, within SPLINE_POINTS."""
+    p = np.asarray(points, np.float64).reshape(-1, 3)
+    offsets = np.asarray(offsets, np.int64)
+    if len(p) < 3:
+        return 0
+    seg = np.diff(p, axis=0)
+    seg /= np.maximum(np.linalg.norm(seg, axis=1, keepdims=True), 1e-30)
+    inner = np.ones(len(p), bool)
+    inner[offsets[:-1][offsets[:-1] < len(p)]] = False
+    inner[np.clip(offsets[1:] - 1, 0, len(p) - 1)] = False      # first and last point of each curve
+    idx = np.nonzero(inner[1:-1])[0] + 1
+    if len(idx) == 0:
+        return 0
+    cos = np.clip((seg[idx - 1] * seg[idx]).sum(axis=1), -1.0, 1.0)
+    turn = np.degrees(np.percentile(np.arccos(cos), 90))
+    steps = int(min(MAX_SPLINE_STEPS, np.ceil(turn / 5.0)))
+    return max(0, min(steps, SPLINE_POINTS // max(len(p), 1) - 1))
+
+
+def _caps(p, r, t, ring, scale, start_of, counts, curve, sides, pos, nrm, tris, of_curve):
+    """Round ends, as Cycles' curves (swept spheres) have: at each curve end
+    of radius > 0, a ring at 45 degrees and a tip one radius out along the
+    curve, joined to the end's ring."""
+    ends = np.concatenate([start_of, start_of + counts - 1])
+    out = np.concatenate([-np.ones(len(start_of)), np.ones(len(start_of))])     # away from the curve
+    keep = r[ends] > 0
+    ends, out = ends[keep], out[keep]
+    if len(ends) == 0:
+        return pos, nrm, tris, of_curve
+    c = np.sqrt(0.5)
+    axis = t[ends] * out[:, None]
+    mid_dir = c * ring[ends] + c * axis[:, None, :]                  # (E, sides, 3)
+    mid = p[ends][:, None, :] + (r[ends] * scale)[:, None, None] * c * ring[ends] \
+        + (r[ends] * c)[:, None, None] * axis[:, None, :]
+    tip = p[ends] + r[ends][:, None] * axis
+    base = len(pos)
+    m0 = base + np.arange(len(ends))[:, None] * sides + np.arange(sides)[None, :]
+    m1 = base + np.arange(len(ends))[:, None] * sides + (np.arange(sides)[None, :] + 1) % sides
+    tip_i = base + len(ends) * sides + np.arange(len(ends))[:, None] + 0 * m0
+    e0 = ends[:, None] * sides + np.arange(sides)[None, :]
+    e1 = ends[:, None] * sides + (np.arange(sides)[None, :] + 1) % sides
+    # wound to face outward: the far end's as the tube's sides run, the near end's reversed
+    far = (out > 0)[:, None, None]
+    band = np.concatenate([np.stack([e0, e1, m1], -1), np.stack([e0, m1, m0], -1)], axis=1)
+    band = np.where(far, band, band[..., ::-1])
+    cone = np.stack([m0, m1, tip_i], -1)
+    cone = np.where(far, cone, cone[..., ::-1])
+    cap_tris = np.concatenate([band, cone], axis=1).reshape(-1, 3)
+    pos = np.concatenate([pos, mid.reshape(-1, 3), tip])
+    nrm = np.concatenate([nrm, mid_dir.reshape(-1, 3), axis])
+    return pos, nrm, np.concatenate([tris, cap_tris]), np.concatenate([of_curve,
+                                                                        np.repeat(curve[ends], 3 * sides)])
+
+
+def tubes(points, radii, offsets, sides=None, spline_steps=0):
     """Triangles of tubes along curves: points (N, 3) and radii (N,) of all
-    curves, offsets (C + 1,) each curve's first point (and the end). Returns
-    (positions, triangles int32, corner normals (T, 3, 3), curve of each
-    triangle (T,) int64). Points of non-finite position or radius and
-    repeated points are dropped; curves left with fewer than two points and
-    segments between two zero radii give nothing."""
+    curves, offsets (C + 1,) each curve's first point (and the end);
+    spline_steps: points added in each segment along the Catmull-Rom spline
+    through the points (Cycles' curves follow it). Returns (positions,
+    triangles int32, corner normals (T, 3, 3), curve of each triangle (T,)
+    int64). Points of non-finite position or radius and repeated points are
+    dropped; curves left with fewer than two points and segments between
+    two zero radii give nothing."""
     p = np.asarray(points, np.float64).reshape(-1, 3)
     r = np.asarray(radii, np.float64).reshape(-1)
     offsets = np.asarray(offsets, np.int64)
@@ -130,6 +225,8 @@ def tubes(points, radii, offsets, sides=None):
     keep = keep_curve[curve]
     p, r, curve = p[keep], r[keep], curve[keep]
     counts = counts[keep_curve]
+    if spline_steps > 0 and len(p):
+        p, r, curve, counts = catmull_rom(p, r, curve, counts, int(spline_steps))
     if sides is None:
         sides = _pick(TUBE_SIDES, len(p), 4)
     empty = (np.zeros((0, 3), np.float32), np.zeros((0, 3), np.int32), np.zeros((0, 3, 3), np.float32),
@@ -173,6 +270,7 @@ def tubes(points, radii, offsets, sides=None):
     tris = np.concatenate([np.stack([a0, a1, b1], axis=-1), np.stack([a0, b1, b0], axis=-1)], axis=1)
     tris = tris.reshape(-1, 3)
     of_curve = np.repeat(curve[seg], 2 * sides)
+    pos, nrm, tris, of_curve = _caps(p, r, t, ring, scale, start_of, counts, curve, sides, pos, nrm, tris, of_curve)
     # A tip of radius zero makes one triangle of each side's pair a line.
     e = np.cross(pos[tris[:, 1]] - pos[tris[:, 0]], pos[tris[:, 2]] - pos[tris[:, 0]])
     ok = (e * e).sum(axis=1) > 0

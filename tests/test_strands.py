@@ -96,6 +96,28 @@ def _particle_hair(show_emitter=True, children=0):
     return ob
 
 
+def test_wavy_hair_follows_the_spline(addon):
+    """Strands of five points zigzagging up: Cycles draws the Catmull-Rom
+    spline through the points, so do the tubes (points added along it by
+    the curves' turns). The polyline alone gave block chi 240 here; the
+    spline about 9 (the tolerance held: 12)."""
+    import bpy
+    from blender_util import diffuse_material
+    scene = _stage()
+    scene.cycles_curves.shape = "THICK"
+    curves = bpy.data.hair_curves.new("Wavy")
+    grid = np.linspace(-1.0, 1.0, 5)
+    roots = [(x, y) for x in grid for y in grid]
+    curves.add_curves([5] * len(roots))
+    pos = [p for x, y in roots for p in ((x, y, 0), (x + 0.25, y, 0.3), (x - 0.15, y + 0.1, 0.6),
+                                         (x + 0.25, y, 0.9), (x, y, 1.2))]
+    curves.position_data.foreach_set("vector", np.array(pos, np.float32).ravel())
+    curves.attributes.new("radius", "FLOAT", "POINT").data.foreach_set("value", np.full(len(pos), 0.03, np.float32))
+    curves.materials.append(diffuse_material("Wavy", (0.2, 0.6, 0.9)))
+    scene.collection.objects.link(bpy.data.objects.new("Wavy", curves))
+    _compare(scene, "wavy hair", max_chi=12.0)
+
+
 @pytest.mark.parametrize("show_emitter,children", [(True, 0), (False, 0), (True, 6)])
 def test_particle_hair_matches_cycles(addon, show_emitter, children):
     """Particle hair (the strands read through ParticleSystem.co_hair, with
@@ -160,10 +182,14 @@ def test_tessellation_bad_input():
     pos, tris, nrm, curve = tubes(pts, np.full(len(pts), 0.1), [0, 1, 3, 5, 8])
     assert set(curve.tolist()) == {3} and np.isfinite(pos).all() and np.isfinite(nrm).all()
     assert tubes(np.zeros((0, 3)), np.zeros(0), [0])[1].shape == (0, 3)
-    # a tip of radius zero: no degenerate triangles
+    # a tip of radius zero: no degenerate triangles (6 sides, the root's round end of 18)
     pos, tris, _, _ = tubes([[0, 0, 0], [0, 0, 1]], [0.1, 0.0], [0, 2], sides=6)
     e = np.cross(pos[tris[:, 1]] - pos[tris[:, 0]], pos[tris[:, 2]] - pos[tris[:, 0]])
-    assert len(tris) == 6 and (np.linalg.norm(e, axis=1) > 0).all()
+    assert len(tris) == 6 + 18 and (np.linalg.norm(e, axis=1) > 0).all()
+    # along a spline: the points pass through the originals, nothing non-finite
+    pos, tris, nrm, _ = tubes([[0, 0, 0], [0, 0, 1], [1, 0, 1], [1, 1, 2]], [0.1] * 4, [0, 4], sides=4,
+                              spline_steps=3)
+    assert np.isfinite(pos).all() and np.isfinite(nrm).all() and len(tris) == 2 * 4 * 12 + 2 * 12
 
 
 @pytest.mark.parametrize("mode", ["RESTIR_BIASED", "RESTIR_UNBIASED"])

@@ -3,7 +3,7 @@ and tubes of triangles (core/strands.py), radii as Cycles reads them."""
 
 import numpy as np
 
-from ...core.strands import spheres, tubes
+from ...core.strands import spheres, spline_steps, tubes
 from .mesh import MeshData
 
 STRAND_TYPES = {"POINTCLOUD", "CURVES"}
@@ -47,8 +47,9 @@ def read_strands(obj, warn=None):
         offsets = np.zeros(len(data.curves) + 1, np.int32)
         if len(data.curves):
             data.curve_offset_data.foreach_get("value", offsets)
-        pos, tris, normals, curve = tubes(_positions(attrs, n), _attribute(attrs, "radius", "POINT", n,
-                                                                           CURVE_RADIUS), offsets)
+        points = _positions(attrs, n)
+        pos, tris, normals, curve = tubes(points, _attribute(attrs, "radius", "POINT", n, CURVE_RADIUS), offsets,
+                                          spline_steps=spline_steps(points, offsets))
         slots = _attribute(attrs, "material_index", "CURVE", len(data.curves), 0, np.int32)[curve]
     if len(tris) == 0:
         return None
@@ -127,7 +128,8 @@ def particle_hair(obj, warn=None):
         if st.use_close_tip:
             radius[:, -1] = 0.0
         offsets = np.arange(strands + 1) * steps
-        pos, tris, normals, _ = tubes(co.reshape(-1, 3), radius.ravel(), offsets)
+        pos, tris, normals, _ = tubes(co.reshape(-1, 3), radius.ravel(), offsets,
+                                      spline_steps=spline_steps(co.reshape(-1, 3), offsets))
         parts.append((pos, tris, normals, max(int(st.material) - 1, 0)))
     if not parts:
         return None
