@@ -44,8 +44,9 @@ def _object_mesh(obj, cache, keys, warn):
             entry = _read(obj.data, obj.name, warn)
             if hair:
                 mesh = with_particle_hair(obj, None if entry is None else entry[0], warn)
-                entry = None if mesh is None else (mesh, {}) if entry is None or mesh is not entry[0] and \
-                    not getattr(obj, "show_instancer_for_render", True) else (mesh, entry[1])
+                shown = entry is not None and getattr(obj, "show_instancer_for_render", True)
+                # The mesh's corner data goes with it only while the emitter is rendered.
+                entry = None if mesh is None else (mesh, entry[1] if shown else {})
             cache[key] = entry
             text = hair_warning(obj, None)
             if text:
