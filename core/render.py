@@ -62,6 +62,9 @@ def render_frame(ctx, settings, frame=0, on_sample=None, should_stop=None):
     batch. Returns the Film with the passes completed so far.
     """
     scene = ctx.scene
+    if getattr(scene, "shutter_motion", None) is not None:     # objects' motion blur (object_motion.py)
+        from .object_motion import render_blurred
+        return render_blurred(ctx, settings, frame, on_sample, should_stop)
     w, h = scene.width, scene.height
     film = Film(w, h)
     pixel_filter = PixelFilter(scene.filter_width)

@@ -5,7 +5,8 @@ around the frame (start, centre, end), as Cycles reads them; the camera is
 evaluated at the shutter's start, middle and end (Cycles' three motion
 steps) by re-evaluating the scene at those subframes (RenderEngine.frame_set,
 as Cycles does), and core/motion.py interpolates between them per camera
-ray. Path Tracing only; objects' own motion is not blurred (a warning).
+ray; so are the objects' matrices, whose motion core/object_motion.py
+renders in time slices. Path Tracing only; rigid motion only.
 """
 
 import math
@@ -27,26 +28,36 @@ def shutter_times(render, frame):
 
 
 def camera_motion(engine, depsgraph, warn):
-    """(STEPS, 4, 4) matrices of the scene camera over the shutter, or None
-    when motion blur is off, the shutter is zero or the camera does not
-    move. Leaves the scene evaluated at its frame again."""
+    """(camera, objects): the scene camera's (STEPS, 4, 4) matrices over the
+    shutter, or None when it does not move, and {object key: (STEPS, 4, 4)}
+    of every geometry instance (core/object_motion.py keeps those that
+    move); (None, {}) when motion blur is off or the shutter is zero. Leaves
+    the scene evaluated at its frame again."""
+    from .export import instance_key                # noqa: PLC0415 (bpy-heavy)
+    from .export.mesh import GEOMETRY_TYPES         # noqa: PLC0415
     scene = depsgraph.scene
     times = shutter_times(scene.render, scene.frame_current + scene.frame_subframe)
     if times is None:
-        return None
-    warn("Motion blur: only the camera's motion is rendered, in Path Tracing; moving objects render sharp")
-    if scene.camera is None:
-        return None
+        return None, {}
+    warn("Motion blur: objects move rigidly (no deformation blur), in Path Tracing only")
     frame, subframe = scene.frame_current, scene.frame_subframe
-    matrices = []
+    matrices, objects = [], {}
     try:
         for t in times:
             whole = math.floor(t)
             engine.frame_set(int(whole), t - whole)
-            matrices.append(np.array(depsgraph.scene.camera.evaluated_get(depsgraph).matrix_world, np.float64))
+            if depsgraph.scene.camera is not None:
+                matrices.append(np.array(depsgraph.scene.camera.evaluated_get(depsgraph).matrix_world, np.float64))
+            for inst in depsgraph.object_instances:         # (the scene's objects)
+                obj = inst.object
+                if obj.type in GEOMETRY_TYPES:
+                    objects.setdefault(instance_key(inst, obj), []).append(np.array(inst.matrix_world, np.float64))
     finally:
         engine.frame_set(frame, subframe)
+    objects = {k: np.stack(v) for k, v in objects.items() if len(v) == len(times)}
+    if len(matrices) != len(times):
+        return None, objects
     m = np.stack(matrices)
     if not np.isfinite(m).all() or np.allclose(m, m[:1], atol=1e-7):
-        return None
-    return m.astype(np.float32)
+        return None, objects
+    return m.astype(np.float32), objects

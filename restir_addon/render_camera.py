@@ -42,10 +42,11 @@ def view_camera(engine, depsgraph, view, warn):
 
 
 def moving_camera(engine, depsgraph, warn):
-    """The scene camera with its motion over the shutter (motion_blur.py),
-    or None (the frame's camera) without motion blur."""
-    motion = camera_motion(engine, depsgraph, warn)
+    """(camera, objects): the scene camera with its motion over the shutter
+    (motion_blur.py), or None (the frame's camera), and the objects'
+    matrices over the shutter by object key ({} without motion blur)."""
+    motion, objects = camera_motion(engine, depsgraph, warn)
     if motion is None:
-        return None
+        return None, objects
     camera = export_camera(depsgraph, warn, region=True)
-    return None if camera is None else replace(camera, motion=motion)
+    return (None if camera is None else replace(camera, motion=motion)), objects
