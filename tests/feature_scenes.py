@@ -1,5 +1,5 @@
 """Scenes for the renderer's features beyond shader nodes (issue 40: panoramic
-cameras, point clouds, hair, volumes), built by script on the example Cornell
+cameras, point clouds, hair, volumes, motion blur), built by script on the example Cornell
 box: the feature rows of bench/contact_sheet.py, ours beside Cycles. Each
 builder takes the opened Cornell box scene and changes it so the feature
 decides most of the image; the tests of each feature (tests/test_panorama.py,
@@ -139,5 +139,22 @@ def volume(scene):
     scene.cycles.volume_bounces = 2
 
 
+def motion_blur(scene):
+    """The short box sliding 0.8 and turning 30 degrees over the frame, the
+    camera turning a little, shutter 0.5 around frame 1.5."""
+    import math
+    box, cam = scene.objects["ShortBox"], scene.camera
+    x, yaw = box.location.x, box.rotation_euler.z
+    for frame, dx, dyaw, cam_yaw in ((1, -0.4, -15.0, -1.5), (2, 0.4, 15.0, 1.5)):
+        box.location.x, box.rotation_euler.z = x + dx, yaw + math.radians(dyaw)
+        box.keyframe_insert("location", frame=frame)
+        box.keyframe_insert("rotation_euler", frame=frame)
+        cam.rotation_euler.z = math.radians(cam_yaw)
+        cam.keyframe_insert("rotation_euler", frame=frame)
+    scene.frame_set(1, subframe=0.5)
+    scene.render.use_motion_blur = True
+    scene.render.motion_blur_shutter = 0.5
+
+
 FEATURES = {"panorama_equirectangular": panorama_equirectangular, "panorama_fisheye": panorama_fisheye,
-            "point_cloud": point_cloud, "hair": hair, "volume": volume}
+            "point_cloud": point_cloud, "hair": hair, "volume": volume, "motion_blur": motion_blur}
