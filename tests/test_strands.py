@@ -158,7 +158,8 @@ def test_principled_hair_approximation(addon, reports, parametrization):
 
 def test_hair_bad_input(addon, reports, tmp_path):
     """A hair object of one strand of one point, one of two equal points,
-    and an empty one render nothing and no error; the image is valid."""
+    an empty one, and a particle system of one strand of radius 0 render
+    nothing (or that one strand) and no error; the image is valid."""
     import bpy
     from addon_util import render_exr
     from core.film import read_exr
@@ -166,6 +167,11 @@ def test_hair_bad_input(addon, reports, tmp_path):
     _hair("One", counts=[1] + [2] * 35)
     empty = bpy.data.hair_curves.new("Empty")
     scene.collection.objects.link(bpy.data.objects.new("Empty", empty))
+    single = _particle_hair()
+    single.particle_systems[0].settings.count = 1
+    thin = _particle_hair()
+    thin.location.x = 0.5
+    thin.particle_systems[0].settings.radius_scale = 0.0
     render_exr(scene, tmp_path / "bad.exr")
     img = read_exr(tmp_path / "bad.exr")
     assert np.isfinite(img).all() and img.mean() > 0
