@@ -344,8 +344,9 @@ def _render_view(engine, depsgraph, view, report=True, stream=None, preview=Fals
         # A later view of the frame changes only the camera of the exported scene.
         camera = view_camera(engine, depsgraph, view, frame_scene.warnings)
         blur_notes, moving = [], {}
-        if view is None and not preview and scene.restir_gi.mode == "PATH":
-            camera, moving = moving_camera(engine, depsgraph, blur_notes.append)
+        if view is None and not preview:
+            camera, moving = moving_camera(engine, depsgraph, blur_notes.append,
+                                           objects=scene.restir_gi.mode == "PATH")
         has_camera = frame_scene.update(depsgraph, width, height, camera, camera_only=not report)
         for text in blur_notes:        # after the update, which may start its warnings over
             frame_scene.warnings(text)

@@ -6,7 +6,9 @@ evaluated at the shutter's start, middle and end (Cycles' three motion
 steps) by re-evaluating the scene at those subframes (RenderEngine.frame_set,
 as Cycles does), and core/motion.py interpolates between them per camera
 ray; so are the objects' matrices, whose motion core/object_motion.py
-renders in time slices. Path Tracing only; rigid motion only.
+renders in time slices (Path Tracing; the ReSTIR modes blur the camera's
+motion only, their reprojection following the frame's camera). Rigid
+motion only.
 """
 
 import math
@@ -27,7 +29,7 @@ def shutter_times(render, frame):
     return [frame + start + shutter * k / (STEPS - 1) for k in range(STEPS)]
 
 
-def camera_motion(engine, depsgraph, warn):
+def camera_motion(engine, depsgraph, warn, objects=True):
     """(camera, objects): the scene camera's (STEPS, 4, 4) matrices over the
     shutter, or None when it does not move, and {object key: (STEPS, 4, 4)}
     of every geometry instance (core/object_motion.py keeps those that
@@ -39,16 +41,17 @@ def camera_motion(engine, depsgraph, warn):
     times = shutter_times(scene.render, scene.frame_current + scene.frame_subframe)
     if times is None:
         return None, {}
-    warn("Motion blur: objects move rigidly (no deformation blur), in Path Tracing only")
+    warn("Motion blur: objects move rigidly (no deformation blur)" if objects else
+         "Motion blur in the ReSTIR modes: the camera's motion only; objects render sharp (Path Tracing blurs them)")
     frame, subframe = scene.frame_current, scene.frame_subframe
-    matrices, objects = [], {}
+    matrices, read_objects, objects = [], objects, {}
     try:
         for t in times:
             whole = math.floor(t)
             engine.frame_set(int(whole), t - whole)
             if depsgraph.scene.camera is not None:
                 matrices.append(np.array(depsgraph.scene.camera.evaluated_get(depsgraph).matrix_world, np.float64))
-            for inst in depsgraph.object_instances:         # (the scene's objects)
+            for inst in (depsgraph.object_instances if read_objects else ()):    # (the scene's objects)
                 obj = inst.object
                 if obj.type in GEOMETRY_TYPES:
                     objects.setdefault(instance_key(inst, obj), []).append(np.array(inst.matrix_world, np.float64))

@@ -41,11 +41,12 @@ def view_camera(engine, depsgraph, view, warn):
     return camera
 
 
-def moving_camera(engine, depsgraph, warn):
+def moving_camera(engine, depsgraph, warn, objects=True):
     """(camera, objects): the scene camera with its motion over the shutter
     (motion_blur.py), or None (the frame's camera), and the objects'
-    matrices over the shutter by object key ({} without motion blur)."""
-    motion, objects = camera_motion(engine, depsgraph, warn)
+    matrices over the shutter by object key ({} without motion blur, or
+    without ``objects``: the ReSTIR modes blur the camera's motion only)."""
+    motion, objects = camera_motion(engine, depsgraph, warn, objects)
     if motion is None:
         return None, objects
     camera = export_camera(depsgraph, warn, region=True)

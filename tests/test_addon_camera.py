@@ -103,11 +103,6 @@ def test_camera_depth_of_field(addon):
     cam.data.type = "ORTHO"
     bpy.context.view_layer.update()
     assert math.isclose(export(addon, 16, 16).camera.aperture_size, 0.25, rel_tol=1e-6)
-    warnings = []
-    scene.render.use_motion_blur = True
-    scene.restir_gi.mode = "RESTIR_BIASED"      # motion blur renders in Path Tracing only
-    addon.restir_addon.export.camera.export_camera(bpy.context.evaluated_depsgraph_get(), warnings.append)
-    assert any("Motion blur" in w for w in warnings)
     assert "RESTIR_GI" in bpy.types.DATA_PT_camera_dof.COMPAT_ENGINES
     assert "RESTIR_GI" in bpy.types.DATA_PT_camera_dof_aperture.COMPAT_ENGINES
 

@@ -184,11 +184,12 @@ def camera_rays(scene, pixel_filter, pix, seeds, jitter=None):
     (N, 2) uniforms for the pixel filter instead of the seeds' own."""
     w, h = scene.width, scene.height
     xy = np.stack([pix % w, pix // w], axis=1).astype(np.float32) + 0.5
-    lens = None
+    lens = time = None
     if seeds is not None:
         xy += pixel_filter.offsets(samplers.uniform2(seeds, samplers.DIM_CAMERA) if jitter is None else jitter)
         lens = samplers.lens_uniforms(scene.camera, seeds)
-    return generate_rays(scene.camera, w, h, xy, lens)
+        time = samplers.time_uniforms(scene.camera, seeds)      # a camera moving over the shutter
+    return generate_rays(scene.camera, w, h, xy, lens, time)
 
 
 def stream_jitter(seed, pix, index):

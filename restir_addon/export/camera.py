@@ -59,8 +59,6 @@ def _export_camera(depsgraph, warn):
         projection = "PERSP"
     if scene.render.pixel_aspect_x != scene.render.pixel_aspect_y:
         warn("Non-square pixel aspect is not supported; rendering with square pixels")
-    if scene.render.use_motion_blur and getattr(getattr(scene, "restir_gi", None), "mode", "PATH") != "PATH":
-        warn("Motion blur renders in Path Tracing mode only; this mode renders without it")
     return Camera(
         to_world=np.array(cam_obj.matrix_world, np.float32),
         projection=projection,
