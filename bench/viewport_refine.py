@@ -1,0 +1,102 @@
+"""The still viewport's error over time, headless: the session of
+restir_addon/viewport.py on the example room through its camera, frames
+rendered one after another (as its render thread does), each frame's
+display values (the file's view transform, 8 bits, bilinear upscaling
+as drawn) compared with a converged reference.
+
+    .venv/bin/python bench/viewport_refine.py [--size 522x294] [--seconds 20] [--reference PNG]
+
+The reference defaults to bench/out/viewport_window/reference_ours.png
+(ReSTIR GI unbiased, converged, written by bench/viewport_window.py at half
+the camera frame's size in the real window: 522x294, the default --size). Prints, per frame, the time since the start, the stage and size,
+and the MSE in 8-bit values; then the MSE of the frame shown at 5, 10 and
+20 s. Tunes what bench/viewport_window.py measures in the real window
+without one (the times differ: no UI, no export on the main thread).
+"""
+
+import argparse
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from bench_common import OUT, ROOT, load_addon  # noqa: E402
+
+BLEND = ROOT / "example_blends" / "room_animated.blend"
+
+
+def srgb(x):
+    x = np.clip(x, 0.0, 1.0)
+    return np.where(x <= 0.0031308, 12.92 * x, 1.055 * np.power(x, 1 / 2.4) - 0.055)
+
+
+def upscale(frame, width, height):
+    """Bilinear upscale (H, W, C) -> (height, width, C), as the viewport
+    draws a coarse frame (a linearly filtered texture, clamped at the edges)."""
+    h, w = frame.shape[:2]
+    if (h, w) == (height, width):
+        return frame
+    sx = np.clip((np.arange(width) + 0.5) * w / width - 0.5, 0, w - 1)
+    sy = np.clip((np.arange(height) + 0.5) * h / height - 0.5, 0, h - 1)
+    ix, iy = np.minimum(sx.astype(int), max(w - 2, 0)), np.minimum(sy.astype(int), max(h - 2, 0))
+    fx, fy = (sx - ix)[None, :, None], (sy - iy)[:, None, None]
+    ix1, iy1 = np.minimum(ix + 1, w - 1), np.minimum(iy + 1, h - 1)
+    top = frame[iy][:, ix] * (1 - fx) + frame[iy][:, ix1] * fx
+    bottom = frame[iy1][:, ix] * (1 - fx) + frame[iy1][:, ix1] * fx
+    return top * (1 - fy) + bottom * fy
+
+
+def main(argv=None):
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--size", default="522x294")
+    parser.add_argument("--seconds", type=float, default=20.0)
+    parser.add_argument("--reference", default=str(OUT / "viewport_window" / "reference_ours.png"))
+    parser.add_argument("--mode", default="RESTIR_BIASED")
+    parser.add_argument("--step-frames", type=int, help="viewport_progress.STEP_FRAMES instead of its value")
+    parser.add_argument("--carry-frames", type=int, help="resize.CARRY_FRAMES instead of its value")
+    args = parser.parse_args(argv)
+    width, height = (int(v) for v in args.size.split("x"))
+    load_addon()
+    import bpy
+    from restir_gi.restir_addon import viewport as vp
+    from restir_gi.restir_addon import viewport_progress
+    from restir_gi.core.restir import resize
+    if args.step_frames is not None:
+        viewport_progress.STEP_FRAMES = args.step_frames
+    if args.carry_frames is not None:
+        resize.resize_stream.__defaults__ = (args.carry_frames,)
+    print(f"STEP_FRAMES {viewport_progress.STEP_FRAMES}, CARRY_FRAMES {resize.resize_stream.__defaults__[0]}")
+    ref_img = bpy.data.images.load(args.reference)
+    ref_img.colorspace_settings.name = "Non-Color"   # the file's values (a 16-bit PNG reads as linear)
+    ref = np.empty(ref_img.size[0] * ref_img.size[1] * 4, np.float32)
+    ref_img.pixels.foreach_get(ref)
+    ref = ref.reshape(ref_img.size[1], ref_img.size[0], 4)[..., :3]
+    assert ref.shape[:2] == (height, width), ref.shape
+    ref8 = np.round(ref * 255.0)
+    bpy.ops.wm.open_mainfile(filepath=str(BLEND))
+    scene = bpy.context.scene
+    scene.render.engine = "RESTIR_GI"
+    scene.restir_gi.mode = args.mode
+    session = vp.ViewportSession(**vp.session_settings(scene))
+    session.resize(width, height)
+    t0 = time.perf_counter()
+    session.sync(bpy.context.evaluated_depsgraph_get())
+    shown = []
+    while time.perf_counter() - t0 < args.seconds:
+        if not session.render_step():
+            break
+        t = time.perf_counter() - t0
+        frame = upscale(session.frame[..., :3], width, height)
+        err = float(np.mean((np.round(srgb(frame) * 255.0) - ref8) ** 2))
+        shown.append((t, err))
+        print(f"{t:6.2f} s  {session.status():55s} MSE {err:7.1f}", flush=True)
+    session.close()
+    for mark in (5.0, 10.0, 20.0):
+        before = [e for t, e in shown if t <= mark]
+        print(f"at {mark:g} s: MSE {before[-1]:.1f}" if before else f"at {mark:g} s: no frame yet")
+
+
+if __name__ == "__main__":
+    main()
