@@ -20,9 +20,10 @@ def test01_stages_in_order(vp, addon):
     (4, 2, 1 after STEP_FRAMES frames each), sampling at full resolution,
     done at the limit; the header names each."""
     vpp = addon.restir_addon.viewport_progress
-    p = vpp.Progress(limit=10)
+    n = 2 * vpp.STEP_FRAMES + 4           # the sample limit
+    p = vpp.Progress(limit=n)
     stages, divisors, texts = [], [], []
-    for _ in range(12):
+    for _ in range(n + 2):
         stages.append(p.stage)
         texts.append(p.text())
         if p.done:
@@ -32,13 +33,13 @@ def test01_stages_in_order(vp, addon):
         divisors.append(d)
         p.frame_done(None)
     step = vpp.STEP_FRAMES
-    assert divisors == [4] * step + [2] * step + [1] * (10 - 2 * step)
+    assert divisors == [4] * step + [2] * step + [1] * (n - 2 * step)
     assert stages[0] == vpp.MOVING
     # (the stage after a frame: the header shown while the next one renders)
     assert stages[1:2 * step + 1] == [vpp.REFINING] * (2 * step)
-    assert stages[2 * step + 1:10] == [vpp.SAMPLING] * (9 - 2 * step) and stages[10] == vpp.DONE
+    assert stages[2 * step + 1:n] == [vpp.SAMPLING] * (n - 1 - 2 * step) and stages[n] == vpp.DONE
     assert texts[0].startswith("Moving") and "1/4 res" in texts[1] and "1/2 res" in texts[step + 1]
-    assert texts[2 * step + 1] == f"Sample {2 * step + 2}/10" and texts[10] == "Done"
+    assert texts[2 * step + 1] == f"Sample {2 * step + 2}/{n}" and texts[n] == "Done"
     # A change starts over: moving, at the budget's divisor again.
     p.changed()
     assert p.stage == vpp.MOVING and not p.done and p.next_divisor(2, fixed=False) == 2
@@ -77,7 +78,7 @@ def test03_session_refines_a_still_view_to_full_resolution(vp, addon):
     then 1/4, 1/2, full, then samples to the limit and stops."""
     build_scene()
     step = addon.restir_addon.viewport_progress.STEP_FRAMES
-    session = new_session(vp, mode="RESTIR_BIASED", scale="AUTO", samples=12, frame_budget=1e-6)
+    session = new_session(vp, mode="RESTIR_BIASED", scale="AUTO", samples=16, frame_budget=1e-6)
     session.resize(96, 64)
     assert session.render_step()
     camera = session.view
@@ -92,11 +93,11 @@ def test03_session_refines_a_still_view_to_full_resolution(vp, addon):
         sizes.append(session.render_size)
         texts.append(session.status())
     # The last moving frame counts as sample 1.
-    assert sizes == [(24, 16)] * (step - 1) + [(48, 32)] * step + [(96, 64)] * (12 - 2 * step)
+    assert sizes == [(24, 16)] * (step - 1) + [(48, 32)] * step + [(96, 64)] * (16 - 2 * step)
     assert texts[0].startswith("Refining 1/4 res") and texts[step].startswith("Refining 1/2 res") \
         and texts[2 * step + 1].startswith("Sample"), texts
     assert session.converged and session.status().startswith("Done")
-    assert session.progress.samples == 12
+    assert session.progress.samples == 16
     session.close()
 
 
