@@ -70,8 +70,6 @@ but the reference (no gains then): ours against ours, quickly.
 """
 
 import argparse
-import hashlib
-import json
 import math
 import statistics
 import sys
@@ -84,17 +82,16 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from bench_common import OUT, ROOT, load_addon, luminance, render_frames  # noqa: E402
 import finished  # noqa: E402
 from finished import AUX, CYCLES_OIDN_SPP, Curve  # noqa: E402
+from equal_time_refs import REF_SECONDS, cycles, mse, reference, report  # noqa: E402
 from equal_time_table import lag_table, table  # noqa: E402
 
 SCENES = ("room", "slit", "glossy", "courtyard", "emitters")
 MODES = {"biased": "RESTIR_BIASED", "unbiased": "RESTIR_UNBIASED"}
 CAMERAS = ("still", "moving")
-REF_SEED = 1234
 PT_FRAMES = 5
 CYCLES_FRAMES = 4
 FLICKER_FRAMES = 4          # ours: flicker over frames N-3..N
 LAG_STILL, LAG_HOLD = 16, 4
-REF_SECONDS = []            # render times of the references rendered in this run
 
 
 def parse_args():
@@ -134,19 +131,6 @@ def parse_args():
 
 # ---------------------------------------------------------------- engine settings
 
-def cycles(spp, seed, animated):
-    def setup(scene):
-        scene.render.engine = "CYCLES"
-        c = scene.cycles
-        c.device = "CPU"
-        c.samples = spp
-        c.seed = seed
-        c.use_animated_seed = animated
-        c.use_denoising = False
-        c.use_adaptive_sampling = False
-    return setup
-
-
 def ours(mode, warmup=None, denoise=False, schedule=None):
     def setup(scene):
         if schedule is not None:
@@ -159,10 +143,6 @@ def ours(mode, warmup=None, denoise=False, schedule=None):
         if warmup is not None:
             s.warmup_frames = warmup
     return setup
-
-
-def mse(img, ref):
-    return float(((img - ref) ** 2).mean())
 
 
 def cycles_mse_at(t, c1, c16):
@@ -191,11 +171,6 @@ def brightness(img, ref):
     return float(lum.mean()) / m, black
 
 
-def report(label, reports):
-    for line in reports:
-        print(f"    [{label}] {line}", flush=True)
-
-
 def row(method, t, img=None, ref=None, e=None, **extra):
     """A table row: method, ms, MSE, and what else is known (None: '-')."""
     r = {"method": method, "t": t, "mse": e}
@@ -207,42 +182,6 @@ def row(method, t, img=None, ref=None, e=None, **extra):
 
 
 # ---------------------------------------------------------------- one scene x camera
-
-def reference(blend, name, camera, frame, spp, size, halves=False):
-    """Cached Cycles reference of ``frame`` at ``spp``; (image, seconds to
-    render it, whether it was cached, its noise). With ``halves`` it is the
-    mean of two renders of spp / 2 with different seeds, and its noise (the
-    expected MSE it adds) is estimated from their difference: MSE(a, b) / 4;
-    otherwise the noise is None."""
-    from restir_gi.core.film import read_exr, write_exr
-    sha = hashlib.sha1(blend.read_bytes()).hexdigest()[:12]
-    w, h = size
-    refs = OUT / "refs"
-    stem = f"{name}_{camera}_f{frame}_{w}x{h}_{spp}spp{'_halves' if halves else ''}_{sha}"
-    path, meta = refs / f"{stem}.exr", refs / f"{stem}.json"
-    if path.exists() and meta.exists():
-        info = json.loads(meta.read_text())
-        return read_exr(path), info["seconds"], True, info.get("noise")
-    print(f"  reference: Cycles {spp} spp of frame {frame} ({camera}) ...", flush=True)
-    pin = 1 if camera == "still" else None
-    seeds = (REF_SEED, REF_SEED + 1) if halves else (REF_SEED,)
-    imgs, t, noise = [], 0.0, None
-    for seed in seeds:
-        images, seconds, reps = render_frames(blend, [frame], cycles(spp // len(seeds), seed, False), pin=pin)
-        report("reference", reps)
-        imgs.append(images[frame])
-        t += seconds[frame]
-    img = sum(imgs) / len(imgs)
-    if halves:
-        noise = mse(imgs[0], imgs[1]) / 4
-    refs.mkdir(parents=True, exist_ok=True)
-    write_exr(path, img)
-    meta.write_text(json.dumps({"seconds": t, "blend": blend.name, "camera": camera, "frame": frame,
-                                "spp": spp, "seed": REF_SEED, "halves": halves, "noise": noise}))
-    print(f"  reference took {t:.0f} s, cached as {path.relative_to(ROOT)}", flush=True)
-    REF_SECONDS.append(t)
-    return img, t, False, noise
-
 
 def frame_stats(seconds, skip_first=True):
     frames = sorted(seconds)
