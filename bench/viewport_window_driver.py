@@ -3,7 +3,7 @@
 
 REAL_MODE=viewport (default): the engine REAL_ENGINE (RESTIR_GI or CYCLES)
 is picked, the largest 3D view looks through the camera, fitted to the view
-(View > Frame Camera Bounds), overlays off; the camera frame's rectangle in
+(View > Frame Camera Bounds), overlays, gizmos and tool shelf off; the camera frame's rectangle in
 screen pixels is printed, and a crop of it saved (before.png). Then the
 view switches to Rendered and a shell, independent of Blender's main
 thread, takes screenshots of the whole screen REAL_SHOTS seconds
@@ -101,6 +101,8 @@ def setup():
     space = area.spaces.active
     space.region_3d.view_perspective = "CAMERA"
     space.overlay.show_overlays = False
+    space.show_gizmo = False                # the navigation gizmo and the tool shelf
+    space.show_region_toolbar = False       # would lie over the camera frame
     space.shading.type = "SOLID"
     with bpy.context.temp_override(window=window, area=area, region=region):
         bpy.ops.view3d.view_center_camera()
