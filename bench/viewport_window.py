@@ -216,9 +216,6 @@ def main(argv=None):
     reason = real_blender.missing()
     if reason:
         sys.exit(reason)
-    sys.path.insert(0, os.path.join(ROOT, "bench"))
-    from bench_common import load_addon
-    load_addon()            # bpy (image reading), Blender's user folder kept out of $HOME
     os.makedirs(OUT, exist_ok=True)
     pkg, head = package() if args.engines else (None, "the last run's")
     results = {}
@@ -230,6 +227,11 @@ def main(argv=None):
             lines = read_log(folder)
         rect = tuple(float(v) for v in lines["rect"][0].split()[:4])
         results[engine] = {"folder": folder, "rect": rect, "lines": lines}
+    # bpy only now: loading it sets OCIO in this process's environment, which
+    # the real Blender would inherit (its colour management then failed to load).
+    sys.path.insert(0, os.path.join(ROOT, "bench"))
+    from bench_common import load_addon
+    load_addon()            # bpy (image reading), Blender's user folder kept out of $HOME
     rect = results[args.report[0]]["rect"]
     width, height = int(round(rect[2] - rect[0])), int(round(rect[3] - rect[1]))
     rw, rh = (width + 1) // 2, (height + 1) // 2
