@@ -82,7 +82,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from bench_common import OUT, ROOT, load_addon, luminance, render_frames  # noqa: E402
 import finished  # noqa: E402
 from finished import AUX, CYCLES_OIDN_SPP, Curve  # noqa: E402
-from equal_time_refs import REF_SECONDS, cycles, mse, reference, report  # noqa: E402
+from equal_time_refs import REF_SECONDS, cycles, cycles_denoised, mse, reference, report  # noqa: E402
 from equal_time_table import lag_table, table  # noqa: E402
 
 SCENES = ("room", "slit", "glossy", "courtyard", "emitters")
@@ -230,7 +230,7 @@ def cycles_oidn_curve(blend, ref, pin, n, camera, args):
     points, rows, last = {}, [], {}
     for spp in CYCLES_OIDN_SPP:
         images, seconds, reps = render_frames(blend, list(range(n - CYCLES_FRAMES + 1, n + 1)),
-                                              finished.cycles_denoised(spp, 1, True), pin=pin)
+                                              cycles_denoised(spp, 1, True), pin=pin)
         report(f"Cycles + OIDN {spp} spp", reps)
         imgs = [images[f] for f in sorted(images)]
         p = {"t": frame_stats(seconds), "mse": statistics.median(mse(i, ref) for i in imgs),

@@ -23,6 +23,23 @@ def cycles(spp, seed, animated):
     return setup
 
 
+def cycles_denoised(spp, seed, animated):
+    """bench setup: Cycles at ``spp`` with its own Denoise (OIDN, albedo and
+    normal, accurate prefilter, high quality, CPU)."""
+    plain = cycles(spp, seed, animated)
+
+    def setup(scene):
+        plain(scene)
+        c = scene.cycles
+        c.use_denoising = True
+        c.denoiser = "OPENIMAGEDENOISE"
+        c.denoising_input_passes = "RGB_ALBEDO_NORMAL"
+        c.denoising_prefilter = "ACCURATE"
+        c.denoising_quality = "HIGH"
+        c.denoising_use_gpu = False
+    return setup
+
+
 def mse(img, ref):
     return float(((img - ref) ** 2).mean())
 

@@ -111,26 +111,6 @@ def flicker(frames, ref):
     return sum(diffs) / len(diffs) / scale
 
 
-def cycles_denoised(spp, seed, animated):
-    """bench setup: Cycles at ``spp`` with its own Denoise (OIDN, albedo and
-    normal, accurate prefilter, high quality, CPU)."""
-    def setup(scene):
-        scene.render.engine = "CYCLES"
-        c = scene.cycles
-        c.device = "CPU"
-        c.samples = spp
-        c.seed = seed
-        c.use_animated_seed = animated
-        c.use_adaptive_sampling = False
-        c.use_denoising = True
-        c.denoiser = "OPENIMAGEDENOISE"
-        c.denoising_input_passes = "RGB_ALBEDO_NORMAL"
-        c.denoising_prefilter = "ACCURATE"
-        c.denoising_quality = "HIGH"
-        c.denoising_use_gpu = False
-    return setup
-
-
 class Curve:
     """A Cycles curve over samples per pixel: points {spp: {"t": seconds per
     frame, metric: value}}. The time per frame is fitted as a + b spp (least

@@ -183,9 +183,19 @@ def camera_pass(ctx, width, height, seed, frame, sample, max_bounces, pixel_filt
         light = radiance_from_surface(ctx, surf, seeds[idx], 0, max_bounces, shading, first=first)
         light += materials.camera_emission(scene, surf, ctx.lights)
         scatter_add(color, idx, light)
-        depth[idx] = view_depth(scene.camera, surf.p)
-        scatter(normal, idx, surf.ns)
-        scatter(albedo, idx, np.clip(shading.params.diffuse + shading.params.f0, 0.0, 1.0))
+        _first_surface_passes(scene, surf, idx, shading, depth, normal, albedo)
+    return _finished(scene, color, depth, normal, albedo, n, idx, surf)
+
+
+def _first_surface_passes(scene, surf, idx, shading, depth, normal, albedo):
+    """Depth, Normal and Denoising Albedo of the camera rays' first surfaces, in place."""
+    depth[idx] = view_depth(scene.camera, surf.p)
+    scatter(normal, idx, surf.ns)
+    scatter(albedo, idx, np.clip(shading.params.diffuse + shading.params.f0, 0.0, 1.0))
+
+
+def _finished(scene, color, depth, normal, albedo, n, idx, surf):
+    """The PassResult: colours made finite, holdouts cut out, alpha."""
     np.nan_to_num(color, copy=False, nan=0.0, posinf=0.0, neginf=0.0)
     alpha, keep = materials.camera_alpha(scene, n, idx, surf)
     if (keep < 1).any():
@@ -203,14 +213,8 @@ def _with_aovs(ctx, color, o, d, hits, n, tmax):
     surf, idx = surface_hits(scene, o, d, hits, hits.hit & (tmax > 0))
     if len(idx):
         shading = ShadingFrame.at(scene, surf, camera_ray=True)
-        depth[idx] = view_depth(scene.camera, surf.p)
-        scatter(normal, idx, surf.ns)
-        scatter(albedo, idx, np.clip(shading.params.diffuse + shading.params.f0, 0.0, 1.0))
-    np.nan_to_num(color, copy=False, nan=0.0, posinf=0.0, neginf=0.0)
-    alpha, keep = materials.camera_alpha(scene, n, idx, surf)
-    if (keep < 1).any():
-        color = scale(color, keep)
-    return PassResult(color, depth, normal, albedo, alpha)
+        _first_surface_passes(scene, surf, idx, shading, depth, normal, albedo)
+    return _finished(scene, color, depth, normal, albedo, n, idx, surf)
 
 
 def mean_luminance(color):
