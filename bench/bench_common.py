@@ -61,6 +61,7 @@ def captured_output(log_path):
     sys.stdout.flush()
     sys.stderr.flush()
     saved = os.dup(1), os.dup(2)
+    Path(log_path).parent.mkdir(parents=True, exist_ok=True)
     log = open(log_path, "ab")
     start = log.tell()
     os.dup2(log.fileno(), 1)
