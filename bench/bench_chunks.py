@@ -60,7 +60,7 @@ def ours(mode, seed, warmup=None):
 
 def cycles_reference(blend, frame, spp):
     """Cycles at ``spp`` of one frame of the file (cached)."""
-    from restir_gi.core.film import read_exr, write_exr
+    from restir_gi.core.camera.film import read_exr, write_exr
     sha = hashlib.sha1(Path(blend).read_bytes()).hexdigest()[:12]
     path = OUT / "refs" / f"chunks_{Path(blend).stem}_f{frame}_{spp}spp_{sha}.exr"
     if path.exists():

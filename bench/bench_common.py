@@ -127,7 +127,7 @@ def render_frames(blend, frames, setup, pin=None, log_path=None, scene_start=Non
     ``passes`` (pass names besides Combined) the files are multilayer and
     each frame's entry is {pass name: read_passes' array}, Combined included."""
     import bpy
-    from restir_gi.core.film import read_exr
+    from restir_gi.core.camera.film import read_exr
     start, seconds = {}, {}
 
     def pre(sc, *_):

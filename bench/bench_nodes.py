@@ -4,9 +4,9 @@
 
 On the textured example (320x180, one worker): the camera rays' hits are
 shaded again and again to time, per million hits, (a) the materials of
-core/materials.py (graphs run per hit, constant rows gathered) with the
+core/materials/shading.py (graphs run per hit, constant rows gathered) with the
 view-dependent BSDF terms (ShadingFrame.at), and (b) the image texture
-lookups alone (core/texture.py, Linear filtering) on the same UVs. Then
+lookups alone (core/materials/texture.py, Linear filtering) on the same UVs. Then
 ReSTIR frames (biased, the file's bounces) are timed with the time spent in
 material evaluation inside them, for its share of the frame. Medians over
 repeats; this machine is shared, so the numbers vary between runs.
@@ -40,12 +40,12 @@ def main():
     args = ap.parse_args()
     load_addon()
     import bpy
-    from restir_gi.core import materials
-    from restir_gi.core.camera import generate_rays
+    from restir_gi.core.materials import shading as materials
+    from restir_gi.core.camera.projection import generate_rays
     from restir_gi.core.integrators.base import RenderContext, ShadingFrame
-    from restir_gi.core.interaction import surface_hits
+    from restir_gi.core.geometry.interaction import surface_hits
     from restir_gi.core.restir import ReSTIRGI, ReSTIRSettings
-    from restir_gi.core.texture import lookup
+    from restir_gi.core.materials.texture import lookup
 
     scene = export_blend(args.blend)
     bounces = bpy.context.scene.restir_gi.max_bounces

@@ -95,7 +95,7 @@ def main():
     settings = RenderSettings(samples=args.samples, max_bounces=args.bounces)
     # The rays are recorded on threads (a forked twin's rays would stay in the
     # child) and timed through embreex alone; frames are timed as rendered:
-    # one worker, and two (a twin process on Linux, core/forked.py).
+    # one worker, and two (a twin process on Linux, core/workers/forked.py).
     setups = (("1 worker", 1, True), ("2 workers", 2, True))
     engine_rate = {label: [] for label, _, _ in setups}
     raw_rate = {label: [] for label, _, _ in setups}
@@ -140,7 +140,7 @@ def main():
     total = med([s["total"] for s in splits])
     print("frame time split (s)     " + ", ".join(f"{k} {med([s[k] for s in splits]):.3f}" for k in keys)
           + f", total render call {total:.3f} (trace: the rays of this process; with a twin "
-          "process rendering half of each pass, core/forked.py, its rays are not counted)")
+          "process rendering half of each pass, core/workers/forked.py, its rays are not counted)")
     del addon
 
 

@@ -4,7 +4,7 @@
                                            [--denoise] [--workers 1,2,twin]
 
 For one worker, two worker threads, and two workers of which the second is a
-twin process (core/forked.py, the default for render loops on Linux): median
+twin process (core/workers/forked.py, the default for render loops on Linux): median
 ms per pass over --frames frames of a warmed-up static view
 (ReSTIRGI.last_timings: wall time for the G-buffer and the whole frame,
 summed worker time for the passes the workers run; with a child process only
@@ -60,7 +60,7 @@ def main():
         rows = {name: [] for name in PASSES}
         pt = []
         # One render loop over the timed frames: with processes, a twin
-        # process computes its share of every pass (core/forked.py); it
+        # process computes its share of every pass (core/workers/forked.py); it
         # prints nothing and ends with the block.
         with ctx.workers.twin(scene.width * scene.height):
             for f in range(4, 4 + args.frames):

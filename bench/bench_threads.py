@@ -1,5 +1,5 @@
 """How much two threads can give numpy work of a frame's size on this
-machine, against two processes: the ceiling for core/parallel.py's workers.
+machine, against two processes: the ceiling for core/workers/parallel.py's workers.
 
 The workload is a chain of small numpy operations (ufuncs, np.take of rows,
 clip) over arrays of --pixels rows, the shape of the per-pixel passes of a

@@ -3,7 +3,7 @@ an edit to the next finished viewport frame on the example room.
 
     .venv/bin/python bench/bench_viewport.py [--scales HALF QUARTER] [--repeats 2]
 
-Part 1 (core only) measures the choice behind core.dynamic_accel on a
+Part 1 (core only) measures the choice behind core.geometry.dynamic_accel on a
 synthetic scene of --big-triangles triangles with a small moving object:
 rebuilding one Embree scene per edit against moving the object to a small
 second scene (first move, later moves, settling back), and what queries pay
@@ -94,8 +94,8 @@ def timed(fn, repeats=1):
 
 
 def part_accel(n_tris, n_rays, lines):
-    from restir_gi.core.accel import Accel
-    from restir_gi.core.dynamic_accel import DynamicAccel
+    from restir_gi.core.geometry.accel import Accel
+    from restir_gi.core.geometry.dynamic_accel import DynamicAccel
     rng = np.random.default_rng(7)
     v, t, ids, mover = grid_scene(n_tris)
     print(f"accel: {len(t):,} triangles, mover {int((ids == 1).sum())} triangles", flush=True)
@@ -181,7 +181,7 @@ def apply_edit(bpy, session, recorder, edit):
 
 def part_viewport(args, lines):
     import bpy
-    vp = sys.modules["restir_gi"].restir_addon.viewport
+    vp = sys.modules["restir_gi"].restir_addon.viewport.session
     from restir_gi.restir_addon.final import restir_settings
     bpy.ops.wm.open_mainfile(filepath=str(args.blend))
     scene = bpy.context.scene

@@ -8,7 +8,7 @@ room ("animated": example_blends/room_animated.blend, a box sliding into the
 sun while the camera moves: objects move every frame), is rendered as an
 animation through ``bpy.ops.render.render(animation=True)`` with Render >
 Performance > Threads fixed at 1, then at 2 (on Linux the second worker is a
-twin process, core/forked.py), in the ReSTIR biased mode (one frame of
+twin process, core/workers/forked.py), in the ReSTIR biased mode (one frame of
 resampling per animation frame, --warmup frames for the first) and in path
 tracing (--pt-samples per frame). Frame times run from render_pre to render_post
 (export included). Per scene and mode: the first frame (a fresh start: the

@@ -38,7 +38,7 @@ def main():
     from blender_util import compare_with_cycles, open_example, set_resolution
     from feature_scenes import FEATURES
     from node_families import FAMILIES
-    from restir_gi.core.film import write_png
+    from restir_gi.core.camera.film import write_png
 
     OUT.mkdir(parents=True, exist_ok=True)
     builders = {**FAMILIES, **FEATURES}

@@ -390,7 +390,7 @@ def main():
     args = parse_args()
     t_start = time.perf_counter()
     load_addon()
-    from restir_gi.core.film import write_png
+    from restir_gi.core.camera.film import write_png
     OUT.mkdir(parents=True, exist_ok=True)
     suffix = "_quick" if args.quick else ""
     results, lags = {}, []

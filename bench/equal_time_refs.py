@@ -55,7 +55,7 @@ def reference(blend, name, camera, frame, spp, size, halves=False):
     mean of two renders of spp / 2 with different seeds, and its noise (the
     expected MSE it adds) is estimated from their difference: MSE(a, b) / 4;
     otherwise the noise is None."""
-    from restir_gi.core.film import read_exr, write_exr
+    from restir_gi.core.camera.film import read_exr, write_exr
     sha = hashlib.sha1(blend.read_bytes()).hexdigest()[:12]
     w, h = size
     refs = OUT / "refs"

@@ -44,7 +44,7 @@ def main():
 
     load_addon()
     from restir_gi.core import RenderContext, RenderSettings, render_frame
-    from restir_gi.core.film import read_exr, write_exr, write_png
+    from restir_gi.core.camera.film import read_exr, write_exr, write_png
     from restir_gi.core.restir import BIASED, UNBIASED, ReSTIRGI, ReSTIRSettings
 
     scene = export_blend(args.blend, args.scale)

@@ -78,12 +78,13 @@ def split(ctx, seeds):
 def reuse(ctx, pixel_filter, seeds, offsets, diffuse=False):
     """(variance own, variance reused, mean own, mean reused, pixels) over
     the pixels with a glossy lobe (diffuse: every pixel, the diffuse lobe)."""
-    from restir_gi.core import bsdf
+    from restir_gi.core.bsdfs import bsdf
     from restir_gi.core.integrators.base import shadow_rays
     from restir_gi.core.integrators.bounces import Bounces
     from restir_gi.core.restir.gbuffer import trace_rows
     from restir_gi.core.restir.initial import COSINE, _source_pdf, initial_samples
-    from restir_gi.core.sampling import INV_PI, dot, to_local
+    from restir_gi.core.sampling.warps import INV_PI
+    from restir_gi.core.util.vectors import dot, to_local
     w, h = ctx.scene.width, ctx.scene.height
     runs = []
     for seed in seeds:
@@ -170,7 +171,7 @@ def main():
     args = ap.parse_args()
     load_addon()
     from restir_gi.core import RenderContext
-    from restir_gi.core.camera import PixelFilter
+    from restir_gi.core.camera.projection import PixelFilter
     scene = export_blend(ROOT / "example_blends" / f"corpus_{args.scene}.blend")
     ctx = RenderContext.build(scene, threads=1, processes=False)
     seeds = list(range(1, args.seeds + 1))

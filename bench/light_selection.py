@@ -1,5 +1,5 @@
 """Next-event estimation among many emitters: choosing them by power alone,
-by place (core/light_grid.py without cones), by place and cone as the grid's
+by place (core/lights/light_grid.py without cones), by place and cone as the grid's
 cell alone sees them (``LOCAL`` 0), and by place and cone with each point's
 own share among its cell's top clusters (the engine's choice).
 
@@ -28,8 +28,8 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
-from core import light_grid  # noqa: E402
-from core.lights import LightSet  # noqa: E402
+from core.lights import light_grid  # noqa: E402
+from core.lights.light_set import LightSet  # noqa: E402
 from core import Materials  # noqa: E402
 from core.scene import LIGHT_AREA, LIGHT_POINT, LIGHT_SPOT, Lights, make_scene  # noqa: E402
 

@@ -29,7 +29,7 @@ REF_SEED = 1234
 
 
 def reference(frame, spp):
-    from restir_gi.core.film import read_exr, write_exr
+    from restir_gi.core.camera.film import read_exr, write_exr
     sha = hashlib.sha1(BLEND.read_bytes()).hexdigest()[:12]
     path = OUT / "refs" / f"quick_start_f{frame}_{spp}spp_{sha}.exr"
     if path.exists():
@@ -71,7 +71,7 @@ def main():
     print(text)
     OUT.mkdir(parents=True, exist_ok=True)
     (OUT / "quick_start.md").write_text(text)
-    from restir_gi.core.film import write_png
+    from restir_gi.core.camera.film import write_png
     write_png(OUT / "quick_start.png", np.concatenate(tiles, axis=1))
 
 

@@ -48,7 +48,7 @@ def main():
     load_addon()
     import bpy
     from restir_gi.core import RenderContext
-    from restir_gi.core.film import read_exr
+    from restir_gi.core.camera.film import read_exr
     from restir_gi.restir_addon.export import export_scene
     from restir_gi.restir_addon.final import restir_settings
 

@@ -193,7 +193,7 @@ def package_path(args: argparse.Namespace) -> str:
 
 
 # Innermost frame of a traceback inside the installed package: the path after
-# the package folder (".../restir_gi/core/materials.py") is the repository's.
+# the package folder (".../restir_gi/core/materials/shading.py") is the repository's.
 FRAME_RE = re.compile(r'File "[^"]*[/\\]restir_gi[/\\]([^"]+)", line (\d+), in (\S+)')
 
 

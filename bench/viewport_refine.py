@@ -1,5 +1,5 @@
 """The still viewport's error over time, headless: the session of
-restir_addon/viewport.py on the example room through its camera, frames
+restir_addon/viewport/session.py on the example room through its camera, frames
 rendered one after another (as its render thread does), each frame's
 display values (the file's view transform, 8 bits, bilinear upscaling
 as drawn) compared with a converged reference.
@@ -60,8 +60,8 @@ def main(argv=None):
     width, height = (int(v) for v in args.size.split("x"))
     load_addon()
     import bpy
-    from restir_gi.restir_addon import viewport as vp
-    from restir_gi.restir_addon import viewport_progress
+    from restir_gi.restir_addon.viewport import session as vp
+    from restir_gi.restir_addon.viewport import progress as viewport_progress
     from restir_gi.core.restir import resize
     if args.step_frames is not None:
         viewport_progress.STEP_FRAMES = args.step_frames

@@ -32,7 +32,7 @@ def main():
     load_addon()
     import test_vs_cycles as cornell
     from blender_util import compare_with_cycles, set_resolution
-    from restir_gi.core.film import write_png
+    from restir_gi.core.camera.film import write_png
 
     OUT.mkdir(parents=True, exist_ok=True)
     print(f"Cornell box {args.size}x{args.size}, {args.samples} spp, {args.bounces} bounces, "

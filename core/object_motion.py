@@ -15,6 +15,12 @@ import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
+from .camera.film import Film
+from .camera.motion import rigid_at
+from .geometry.accel import Accel
+from .integrators import transparency
+from .integrators.base import RenderContext
+from .lights.light_set import LightSet
 
 MAX_SLICES = 32
 
@@ -51,7 +57,6 @@ class ShutterMotion:
     def at(self, time):
         """(M, 4, 4) matrices taking each moving object from the frame to
         shutter time ``time`` in [0, 1]."""
-        from .motion import rigid_at
         out = np.empty((len(self.object_ids), 4, 4))
         for j in range(len(self.object_ids)):      # (the moving objects)
             r, t = rigid_at(self.matrices[j], np.array([time]))
@@ -67,7 +72,6 @@ class ShutterMotion:
 def scene_at(scene, motion, time):
     """A shallow copy of the scene with the moving objects and the camera at
     shutter time ``time``."""
-    from .motion import rigid_at
     out = copy.copy(scene)
     moves = motion.at(time)
     tri_obj = np.asarray(scene.object_ids)
@@ -106,15 +110,10 @@ def scene_at(scene, motion, time):
     return out
 
 
-def render_blurred(ctx, settings, frame, on_sample=None, should_stop=None):
-    """render_frame with the scene's ShutterMotion: the samples split over
-    time slices (see the module notes); a Film of all of them."""
-    from . import transparency
-    from .accel import Accel
-    from .film import Film
-    from .integrators.base import RenderContext
-    from .lights import LightSet
-    from .render import render_frame
+def render_blurred(render_frame, ctx, settings, frame, on_sample=None, should_stop=None):
+    """render_frame (core/render.py's, handed over) with the scene's
+    ShutterMotion: the samples split over time slices (see the module notes);
+    a Film of all of them."""
     scene = ctx.scene
     motion = scene.shutter_motion
     # At least two samples a slice: with one, each slice's only sample is its
@@ -150,7 +149,6 @@ def render_blurred(ctx, settings, frame, on_sample=None, should_stop=None):
 
 def _merge(a, b):
     """The film of the samples of both."""
-    from .film import Film
     out = Film(a.width, a.height)
     out.count = a.count + b.count
     out.sum = a.sum + b.sum

@@ -8,12 +8,13 @@ from dataclasses import dataclass
 import numpy as np
 
 from . import scene_patch
-from .camera import PixelFilter
-from .film import Film
+from .camera.projection import PixelFilter
+from .camera.film import Film
 from .integrators.path import camera_pass
-from .parallel import Continuation, concat_rows, release_free_memory
+from .workers.parallel import Continuation, concat_rows, release_free_memory
 from .restir import BIASED
 from .restir.accumulation import STILL
+from .object_motion import render_blurred
 
 
 @dataclass
@@ -63,14 +64,13 @@ def render_frame(ctx, settings, frame=0, on_sample=None, should_stop=None):
     """
     scene = ctx.scene
     if getattr(scene, "shutter_motion", None) is not None:     # objects' motion blur (object_motion.py)
-        from .object_motion import render_blurred
-        return render_blurred(ctx, settings, frame, on_sample, should_stop)
+        return render_blurred(render_frame, ctx, settings, frame, on_sample, should_stop)
     w, h = scene.width, scene.height
     film = Film(w, h)
     pixel_filter = PixelFilter(scene.filter_width)
     start = time.perf_counter()
     n = w * h
-    # A second process on Linux (core/forked.py), kept for the next frame of
+    # A second process on Linux (core/workers/forked.py), kept for the next frame of
     # an animation if the scene changed only its camera, or objects moved
     # (core/scene_patch.py).
     keep = Continuation(lambda: _continuation_token(ctx), (ctx,), _resume_path, (scene.camera, settings, frame),
@@ -150,7 +150,7 @@ def render_restir(ctx, restir, settings, frame, frames=1, fresh=False, on_frame=
     ramp = fresh and settings.mode != BIASED and settings.accumulate > 1
     result = None
     scene = ctx.scene
-    # The twin process (core/forked.py) goes on into the next frame's loop of
+    # The twin process (core/workers/forked.py) goes on into the next frame's loop of
     # an animation if the scene changed only its camera since, or objects
     # moved (core/scene_patch.py).
     keep = Continuation(lambda: _continuation_token(ctx, restir), (ctx, restir), _resume_restir,

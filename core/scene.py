@@ -155,7 +155,7 @@ class Camera:
     aperture_blades: int = 0
     aperture_rotation: float = 0.0
     aperture_ratio: float = 1.0
-    # Panoramic cameras (projection "PANO", core/panorama.py): Cycles'
+    # Panoramic cameras (projection "PANO", core/camera/panorama.py): Cycles'
     # panorama type, the equirectangular latitude and longitude ranges
     # (radians), the fisheyes' field of view (radians) and equisolid lens
     # (mm); pano_region: (x0, y0, W, H), where a render region's film lies in
@@ -178,7 +178,7 @@ class Camera:
     central_cylindrical_range_v_max: float = 1.0
     central_cylindrical_radius: float = 1.0
     pano_region: tuple = None
-    # Motion blur (core/motion.py): the camera's matrices (K, 4, 4) at K
+    # Motion blur (core/camera/motion.py): the camera's matrices (K, 4, 4) at K
     # evenly spaced times over the shutter, None without blur; to_world stays
     # the frame's (depth, reprojection).
     motion: np.ndarray = None
@@ -197,7 +197,7 @@ class Scene:
     lights: Lights
     camera: Camera
     world_color: np.ndarray = field(default_factory=lambda: np.zeros(3, np.float32))  # radiance
-    # The world as a light (core/environment.py's Environment: an HDRI, a sky);
+    # The world as a light (core/lights/environment.py's Environment: an HDRI, a sky);
     # None: a constant world of radiance world_color (LightSet builds it).
     environment: object = None
     width: int = 64
@@ -212,10 +212,10 @@ class Scene:
     # (geometry, lighting) change counters, from a builder that knows what it
     # changed (the viewport): the keys below are then these instead of digests.
     versions: tuple = None
-    # Shader node graphs (core/shader/graph.py), one per material id or None
+    # Shader node graphs (core/materials/shader/graph.py), one per material id or None
     # where the Materials row says all; images they read by key
-    # (core/texture.py); corner data they read beyond scene.uvs, by the
-    # graphs' ``needs`` keys (core/shader/geometry.py); per-object values of
+    # (core/materials/texture.py); corner data they read beyond scene.uvs, by the
+    # graphs' ``needs`` keys (core/materials/shader/geometry.py); per-object values of
     # the Object Info node ("Color" (O, 3), "Random" (O,), "Alpha" (O,)).
     shaders: list = field(default_factory=list)
     images: dict = field(default_factory=dict)

@@ -1,8 +1,8 @@
 """A parked twin process following the scene's edits between two frames.
 
-A render loop's twin (core/forked.py) is kept between the frames of an
+A render loop's twin (core/workers/forked.py) is kept between the frames of an
 animation (``Workers.twin``). When objects move, the add-on updates the
-combined arrays in place and the DynamicAccel (core/dynamic_accel.py),
+combined arrays in place and the DynamicAccel (core/geometry/dynamic_accel.py),
 builds a new Scene and a new LightSet where emitters moved. The
 twin holds copies of the last frame's: rather than forking a new twin, whose
 copy-on-write page faults are paid again every frame, the parent sends a
@@ -17,6 +17,8 @@ import pickle
 from dataclasses import dataclass
 
 import numpy as np
+from .integrators import transparency
+from .lights.light_set import LightSet
 
 MAX_BYTES = 32 << 20     # larger patches fork a new twin instead (a copy of 1M triangles' arrays)
 
@@ -80,8 +82,6 @@ def make(old_ctx, new_ctx, old_updates):
 
 def apply(ctx, patch):
     """(twin) ctx brought to the parent's new context by ``patch``."""
-    from . import transparency                          # noqa: PLC0415 (heavy imports)
-    from .lights import LightSet                        # noqa: PLC0415
     scene = object.__new__(type(ctx.scene))
     old = vars(ctx.scene)
     scene.__dict__.update({k: old[k] for k in patch.keep})

@@ -1,11 +1,10 @@
 """Blender layer of the ReSTIR GI engine: everything that imports bpy lives here."""
 
-if "bpy" in locals():  # add-on reload: re-import submodules in order
-    import importlib
-    for _name in ("properties", "state", "final", "viewport_sync", "viewport_arrays", "viewport",
-                  "viewport_draw", "engine", "ui"):
-        if _name in locals():
-            importlib.reload(locals()[_name])
+if "bpy" in locals():  # Reload Scripts: drop every module of the extension, imported afresh below
+    import sys
+    _root = __name__.rpartition(".")[0]
+    for _name in [n for n in sys.modules if n.startswith(_root + ".core") or n.startswith(__name__ + ".")]:
+        del sys.modules[_name]
 
 import bpy  # noqa: E402
 

@@ -2,7 +2,8 @@
 
 import bpy
 
-from . import final, viewport
+from . import final
+from .viewport import draw as viewport_draw
 from .export import images
 from .passes import register_passes
 
@@ -21,13 +22,13 @@ class RestirGIRenderEngine(bpy.types.RenderEngine):
         register_passes(self, scene, renderlayer)
 
     def view_update(self, context, depsgraph):
-        viewport.view_update(self, context, depsgraph)
+        viewport_draw.view_update(self, context, depsgraph)
 
     def view_draw(self, context, depsgraph):
-        viewport.view_draw(self, context, depsgraph)
+        viewport_draw.view_draw(self, context, depsgraph)
 
     def __del__(self):
-        viewport.free(self)
+        viewport_draw.free(self)
 
 
 def register():

@@ -25,12 +25,12 @@ import traceback
 import numpy as np
 
 from ..core import RenderSettings, render_frame
-from ..core.camera import camera_space_normals
-from ..core.errors import describe
-from ..core.environment import scene_environment
-from ..core.film import to_rgba
+from ..core.camera.projection import camera_space_normals
+from ..core.util.errors import describe
+from ..core.lights.environment import scene_environment
+from ..core.camera.film import to_rgba
 from ..core.integrators.bounces import Bounces
-from ..core.media import media_of
+from ..core.integrators.media import media_of
 from ..core.object_motion import ShutterMotion
 from ..core.render import render_restir
 from ..core.restir import ReSTIRSettings

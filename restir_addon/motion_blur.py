@@ -4,7 +4,7 @@ Render Properties > Motion Blur: the shutter (in frames) and its position
 around the frame (start, centre, end), as Cycles reads them; the camera is
 evaluated at the shutter's start, middle and end (Cycles' three motion
 steps) by re-evaluating the scene at those subframes (RenderEngine.frame_set,
-as Cycles does), and core/motion.py interpolates between them per camera
+as Cycles does), and core/camera/motion.py interpolates between them per camera
 ray; so are the objects' matrices, whose motion core/object_motion.py
 renders in time slices (Path Tracing; the ReSTIR modes blur the camera's
 motion only, their reprojection following the frame's camera). Rigid

@@ -5,7 +5,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from ..core.camera import crop
+from ..core.camera.projection import crop
 from .export.camera import export_camera, render_region, render_size
 from .motion_blur import camera_motion
 

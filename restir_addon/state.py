@@ -15,7 +15,7 @@ when a file is loaded or the add-on is unregistered.
 import bpy
 
 from ..core.restir import ReSTIRGI
-from .frame_scene import FrameScene
+from .sync.frame_scene import FrameScene
 
 _streams = {}
 
@@ -54,7 +54,7 @@ def clear(*_args):
 @bpy.app.handlers.persistent
 def job_ended(scene, *_args):
     """A render job ended: free the exported scenes unless Persistent Data is
-    on; with it, end the twin process kept for the next frame (core/forked.py)."""
+    on; with it, end the twin process kept for the next frame (core/workers/forked.py)."""
     for key, stream in _streams.items():
         target = bpy.data.scenes.get(key[0])
         if target is None or not target.render.use_persistent_data:

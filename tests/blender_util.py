@@ -7,7 +7,7 @@ from pathlib import Path
 
 import numpy as np
 
-from core.film import read_exr
+from core.camera.film import read_exr
 
 ROOT = Path(__file__).resolve().parent.parent
 EXAMPLES = ROOT / "example_blends"

@@ -54,8 +54,14 @@ def reports(addon, monkeypatch):
 
 @pytest.fixture
 def vp(addon):
-    """The add-on's viewport module (restir_addon/viewport.py)."""
-    return addon.restir_addon.viewport
+    """The add-on's viewport session module (restir_addon/viewport/session.py)."""
+    return addon.restir_addon.viewport.session
+
+
+@pytest.fixture
+def vp_draw(addon):
+    """The add-on's viewport callbacks (restir_addon/viewport/draw.py)."""
+    return addon.restir_addon.viewport.draw
 
 
 @pytest.fixture
@@ -79,6 +85,6 @@ def ng(addon):
 
 @pytest.fixture
 def Link(addon):
-    """core.shader.graph.Link as the registered add-on has it."""
+    """core.materials.shader.graph.Link as the registered add-on has it."""
     from node_graph_util import modules
     return modules(addon)[2].Link

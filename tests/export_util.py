@@ -90,7 +90,7 @@ def export_for_render(addon, monkeypatch):
     """core.Scene the engine builds in a real final render (render-mode depsgraph:
     render visibility, render subdivision levels)."""
     import bpy
-    frame_scene = addon.restir_addon.frame_scene
+    frame_scene = addon.restir_addon.sync.frame_scene
     captured = []
     real = frame_scene.FrameScene.update
 
@@ -138,8 +138,8 @@ def area(p):
 
 def row(s, name):
     """What the renderer shades the material called `name` with, as a dict:
-    its lobes (core/materials.py's table) and emission."""
-    from core.materials import shading
+    its lobes (core/materials/shading.py's table) and emission."""
+    from core.materials.shading import shading
     i = s.materials.names.index(name)
     t = shading(s)
     return {"diffuse": t.table.diffuse[i], "f0": t.table.f0[i], "alpha": t.table.alpha[i],

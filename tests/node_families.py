@@ -418,7 +418,7 @@ def sheen_node(scene):
 def anisotropic(scene):
     """Principled Anisotropic on metal spheres (the default tangent, around
     the object's z axis), approximated by the isotropic GGX of the same
-    roughness (core/shader/nodes_shader.py)."""
+    roughness (core/materials/shader/nodes_shader.py)."""
     _spheres([(0.45, (-0.4, 0.25), _principled("BrushedGold", **{
                   "Base Color": (0.9, 0.7, 0.35, 1), "Metallic": 1.0, "Roughness": 0.35, "Anisotropic": 0.8})),
               (0.35, (0.45, -0.3), _principled("BrushedSteel", **{

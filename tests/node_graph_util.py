@@ -7,9 +7,9 @@ import pytest
 
 
 def modules(addon):
-    """(node_graph, node_values, core.shader.graph) as the registered add-on has them."""
+    """(node_graph, node_values, core.materials.shader.graph) as the registered add-on has them."""
     return tuple(importlib.import_module(f"{addon.__name__}.{name}") for name in (
-        "restir_addon.export.node_graph", "restir_addon.export.node_values", "core.shader.graph"))
+        "restir_addon.export.node_graph", "restir_addon.export.node_values", "core.materials.shader.graph"))
 
 
 def new_material(name):

@@ -4,7 +4,7 @@ path's colour of one (path_samples)."""
 import numpy as np
 
 from core import Camera, Lights, Materials, RenderContext, make_scene
-from core.camera import PixelFilter
+from core.camera.projection import PixelFilter
 from core.integrators.path import camera_pass
 from core.scene import LIGHT_AREA, LIGHT_POINT
 

@@ -1,12 +1,12 @@
-"""Embree queries of core.accel against a brute-force Moller-Trumbore in numpy,
+"""Embree queries of core.geometry.accel against a brute-force Moller-Trumbore in numpy,
 occlusion against closest hits, threaded against single-threaded batches, and
 robustness to degenerate input."""
 
 import numpy as np
 import pytest
 
-from core import accel as A
-from core.accel import Accel
+from core.geometry import accel as A
+from core.geometry.accel import Accel
 
 
 def random_triangles(rng, count=150):

@@ -39,7 +39,7 @@ def test_camera_matches_blender_projection(addon, case, rng):
     import bpy
     from bpy_extras.object_utils import world_to_camera_view
     from mathutils import Vector
-    project = addon.core.camera.project
+    project = addon.core.camera.projection.project
     scene = fresh()
     props = CAMERAS[case]
     width, height = (24, 40) if "portrait" in case else (40, 24)
@@ -93,7 +93,7 @@ def test_camera_depth_of_field(addon):
     assert math.isclose(c.focus_distance, expected, rel_tol=1e-5) and c.aperture_blades == 6
     # The viewport looking through the camera has its depth of field; other views do not.
     from types import SimpleNamespace
-    from_region = addon.restir_addon.viewport_sync.camera_from_region
+    from_region = addon.restir_addon.sync.objects.camera_from_region
     view = np.linalg.inv(np.array(cam.matrix_world))
     window = np.array([[2.0, 0, 0, 0], [0, 2.0, 0, 0], [0, 0, -1.002, -0.2002], [0, 0, -1.0, 0]])
     through = from_region(SimpleNamespace(view_matrix=view, window_matrix=window, view_perspective="CAMERA"), scene)

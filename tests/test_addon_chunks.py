@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 
 from addon_util import assert_valid
-from core.film import read_exr
+from core.camera.film import read_exr
 from test_addon_frame_scene import build_scene, edits_handler  # noqa: F401  (fixture)
 
 

@@ -375,7 +375,7 @@ def test_light_temperature_and_spread(addon):
     warm_rows = [i for i, n in enumerate(s.lights.names) if n == "warm"]
     np.testing.assert_allclose(sorted(s.lights.position[warm_rows].tolist()),
                                [[0, 0, 1], [2, 0, 1], [4, 0, 1]], atol=1e-6)
-    from core.shader.nodes_spectrum import blackbody_rec709
+    from core.materials.shader.nodes_spectrum import blackbody_rec709
     tint = blackbody_rec709(np.float32(3000.0)).ravel()
     warm_power = s.lights.power[warm_rows[0]]
     np.testing.assert_allclose(warm_power / warm_power.sum(), tint / tint.sum(), rtol=1e-5)
@@ -401,7 +401,7 @@ def test_area_light_of_zero_size_emits_nothing(addon):
 
 
 def test_light_without_shadows_is_exported(addon):
-    """Cast Shadow off reaches the light rows (core/lights.py then traces no
+    """Cast Shadow off reaches the light rows (core/lights/light_set.py then traces no
     shadow rays for them: tests/test_lights_vs_cycles.py), without a warning."""
     fresh()
     add_light("ghost", "POINT", location=(0, 0, 1), use_shadow=False)
@@ -501,7 +501,7 @@ def test_negative_light_power_emits_nothing_and_says_so(addon):
 
 def test_ray_visibility_per_object(addon):
     """Blender's Camera / Shadow / Diffuse / Glossy / Transmission ray
-    visibility reach the scene per object (core/transparency.py hides the object from those rays)."""
+    visibility reach the scene per object (core/integrators/transparency.py hides the object from those rays)."""
     fresh()
     add_mesh("seen", *QUAD)
     b = add_mesh("unseen", *QUAD, location=(2, 0, 0))

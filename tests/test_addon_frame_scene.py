@@ -1,5 +1,5 @@
 """Animation renders keep the exported scene between frames
-(restir_addon/frame_scene.py): what changed between two frames is seen, and
+(restir_addon/sync/frame_scene.py): what changed between two frames is seen, and
 only that is read again.
 
 Each kind of edit is animated (keyframes, a world's strength, a modifier, a frame-change handler
@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 
 from addon_util import add_mesh, assert_valid, camera, fresh, rect, world
-from core.film import read_exr
+from core.camera.film import read_exr
 
 FRAMES = (1, 2, 3, 4)
 
@@ -287,7 +287,7 @@ def test_placed_face_normals_follow_any_matrix(addon, rng):
     """Face normals placed from the object-space ones (rotation, non-uniform
     scale, mirror) equal those computed from the placed triangles."""
     from restir_gi.restir_addon.export.mesh import MeshData
-    from restir_gi.restir_addon.viewport_sync import _clean_mesh, _face_normals, _Instance, _placed
+    from restir_gi.restir_addon.sync.objects import _clean_mesh, _face_normals, Instance, placed_instance
     n = 200
     pos = rng.normal(size=(n * 3, 3)).astype(np.float32)
     tris = np.arange(n * 3, dtype=np.int32).reshape(-1, 3)
@@ -298,5 +298,5 @@ def test_placed_face_normals_follow_any_matrix(addon, rng):
         m = np.eye(4)
         m[:3, :3] = q @ np.diag(scale)
         m[:3, 3] = rng.normal(size=3)
-        placed, _, fn, tris, _ = _placed(_Instance(mesh, m, np.zeros(1, np.int32)))
+        placed, _, fn, tris, _ = placed_instance(Instance(mesh, m, np.zeros(1, np.int32)))
         np.testing.assert_allclose(fn, _face_normals(placed, tris), atol=2e-4)

@@ -11,7 +11,7 @@ import zlib
 import numpy as np
 import pytest
 
-from core.texture import lookup, srgb_to_linear
+from core.materials.texture import lookup, srgb_to_linear
 
 
 def write_png(path, rows_top_first, alpha=True):
@@ -308,7 +308,7 @@ def test14_image_sequences_follow_the_frame_in_renders(bpy_env, tmp_path, persis
     render (with and without Persistent Data) and in a still of a frame: the
     exporter hands the node's image user and the scene frame to the cache."""
     from addon_util import add_mesh, camera, fresh, rect, world
-    from core.film import read_exr
+    from core.camera.film import read_exr
     bpy = bpy_env.bpy
     values = (40, 120, 200)
     for frame, value in enumerate(values, 1):

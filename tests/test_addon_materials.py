@@ -6,7 +6,7 @@ numbers the scene was built with."""
 import numpy as np
 import pytest
 
-from core.bsdf import principled_lobes
+from core.bsdfs.bsdf import principled_lobes
 from export_util import QUAD, add_mesh, export, fresh, grid, material, row, tri_points
 
 
@@ -28,7 +28,7 @@ def test_material_slots_map_per_triangle(addon):
 
     assert s.triangle_count == 6
     centre_x = tri_points(s).mean(axis=1)[:, 0]
-    from core.materials import shading
+    from core.materials.shading import shading
     colour = shading(s).table.diffuse[s.material_ids]
     for x, want in ((-1 / 3, (0, 0, 1)), (0, (1, 0, 0)), (1 / 3, (0, 1, 0))):
         sel = np.abs(centre_x - x) < 1 / 6
@@ -133,7 +133,7 @@ def test_textured_inputs_are_evaluated(addon):
     tree.links.new(checker.outputs["Color"], tree.nodes["Principled BSDF"].inputs["Base Color"])
     add_mesh("obj", *QUAD).data.materials.append(mat)
     s = export(addon)
-    from core.materials import shading
+    from core.materials.shading import shading
     assert s.warnings == []
     assert shading(s).varying == [row(s, "textured")["id"]]
     assert "generated" in s.corner_data
@@ -170,7 +170,7 @@ def test_materials_showcase_exports_and_renders(addon, tmp_path):
     without a warning, and a small render is finite and lit."""
     import bpy
     from blender_util import open_example, render_image, set_resolution
-    from core.materials import shading
+    from core.materials.shading import shading
     scene = open_example("materials_showcase.blend")
     s, has_camera = addon.restir_addon.export.export_scene(bpy.context.evaluated_depsgraph_get(), 64, 36)
     assert has_camera and s.warnings == []

@@ -12,7 +12,7 @@ centre pixel is the colour read.
 import numpy as np
 
 from addon_util import add_mesh, camera, fresh, rect, world
-from core.film import read_exr
+from core.camera.film import read_exr
 
 SIZE = 48
 

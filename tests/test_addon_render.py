@@ -18,7 +18,7 @@ import pytest
 from addon_util import (MODES, FakeEngine, add_mesh, assert_valid, camera, emission, fresh,
                         lit_plane_scene, read_passes, rect, render_exr, world)
 from blender_util import diffuse_material
-from core.film import read_exr
+from core.camera.film import read_exr
 
 
 # ---------------------------------------------------------------- passes

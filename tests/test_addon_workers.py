@@ -1,4 +1,4 @@
-"""Two workers in the add-on's renders (core/forked.py on Linux): an
+"""Two workers in the add-on's renders (core/workers/forked.py on Linux): an
 animation rendered on two workers gives the frames of one worker, and keeps
 its twin process from frame to frame while the camera and objects move
 (core/scene_patch.py)."""
@@ -8,8 +8,8 @@ import pytest
 
 from addon_util import MODES, add_mesh, camera, fresh, rect, world
 from blender_util import diffuse_material
-from core import forked
-from core.film import read_exr
+from core.workers import forked
+from core.camera.film import read_exr
 
 pytestmark = pytest.mark.skipif(not forked.AVAILABLE, reason="the twin process is Linux's")
 
@@ -119,7 +119,7 @@ def test_a_material_animated_with_objects_renders_the_frames_of_one(addon, repor
 
 
 def test_many_lamps_and_a_moving_emitter_render_the_frames_of_one(addon, reports, tmp_path):
-    """Emitters chosen by place (core/light_grid.py) in both processes: a
+    """Emitters chosen by place (core/lights/light_grid.py) in both processes: a
     glowing cube that moves rebuilds the light set in the parent and in the
     twin (from the patch), the box's frames keep it (LightSet.follow).
 

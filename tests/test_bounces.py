@@ -6,7 +6,7 @@ import pickle
 
 import numpy as np
 
-from core import bsdf
+from core.bsdfs import bsdf
 from core.integrators.bounces import (DIFFUSE, GLOSSY, TRANSMISSION, Bounces, binding, count,
                                       first_bounce_counts, per_kind)
 

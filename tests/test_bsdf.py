@@ -1,4 +1,4 @@
-"""The Lambert + GGX BSDF of core.bsdf: sample against pdf by chi-square,
+"""The Lambert + GGX BSDF of core.bsdfs.bsdf: sample against pdf by chi-square,
 normalisation, reciprocity, energy (white furnace), sample weights, and batch
 against one-at-a-time evaluation (Mitsuba's test_diffuse / test_roughconductor
 and check_vectorization)."""
@@ -7,7 +7,8 @@ import numpy as np
 import pytest
 
 from chi2 import ChiSquareTest, integrate, log_spherical_domain, spherical_domain
-from core import Materials, bsdf
+from core import Materials
+from core.bsdfs import bsdf
 
 MATERIALS = {
     "lambert": {"base_color": (0.8, 0.6, 0.3), "specular": 0.0, "metallic": 0.0},
@@ -159,7 +160,7 @@ def test05_lambert_albedo_is_the_base_colour():
 @pytest.mark.parametrize("name", ["lambert", "metal_r0.1", "metal_r0.5"])
 def test06_white_furnace(name):
     """A white surface reflects all it receives: multiple-scattering energy
-    put back into the GGX lobe (core/microfacet_albedo.py) brings white metals
+    put back into the GGX lobe (core/bsdfs/microfacet_albedo.py) brings white metals
     to one, within the accuracy of the albedo table."""
     # (A 24 x 24 quadrature misses part of the sharp roughness-0.1 lobe.)
     low = 0.8 if name == "metal_r0.1" else 0.97

@@ -1,4 +1,4 @@
-"""The GGX dielectric of core.bsdf_glass (Cycles' Glass BSDF): Fresnel values,
+"""The GGX dielectric of core.bsdfs.glass (Cycles' Glass BSDF): Fresnel values,
 eval against a scalar transcription of Walter et al. 2007, sample against eval,
 chi-square over the whole sphere, energy (smooth limit and white furnace), the
 reciprocity of each transport mode, and degenerate input."""
@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 
 from chi2 import ChiSquareTest, integrate, log_spherical_domain, spherical_domain
-from core import bsdf_glass as glass
-from core.bsdf import ALPHA_MIN
+from core.bsdfs import glass as glass
+from core.bsdfs.microfacet import ALPHA_MIN
 
 PHI_WO = 0.7
 N = 400_000

@@ -1,4 +1,4 @@
-"""Blender's camera model in core.camera: primary rays and projection are
+"""Blender's camera model in core.camera.projection: primary rays and projection are
 inverse, the sensor fit, shift and clipping follow Blender, the pixel
 filter samples Cycles' Blackman-Harris window, and depth of field is
 Cycles' thin lens (its aperture sampled uniformly)."""
@@ -10,7 +10,8 @@ import pytest
 
 from chi2 import ChiSquareTest, box_domain, integrate
 from core import Camera
-from core.camera import PixelFilter, aperture_points, crop, generate_rays, pixel_size, project, view_depth
+from core.camera.projection import (
+    PixelFilter, aperture_points, crop, generate_rays, pixel_size, project, view_depth)
 from scenes import look_at
 
 SIZES = [(64, 48), (48, 64), (50, 50)]

@@ -91,7 +91,7 @@ def test_corpus_exports_with_light(addon, name):
     # Only what the engine supports: nothing approximated.
     assert core_scene.warnings == []
     assert core_scene.triangle_count > 0
-    from restir_gi.core.materials import triangle_emission
+    from restir_gi.core.materials.shading import triangle_emission
     emissive = triangle_emission(core_scene).any(axis=1)
     lights = sorted(bpy.data.objects[n].data.type for n in core_scene.lights.names)
     assert lights == CORPUS[name]

@@ -1,4 +1,4 @@
-"""core.dynamic_accel against a static core.accel.Accel rebuilt over the same
+"""core.geometry.dynamic_accel against a static core.geometry.accel.Accel rebuilt over the same
 triangles: the same closest hits and occlusion on random rays after objects
 move, change their triangle count, appear and vanish; and the builds each
 kind of edit costs."""
@@ -6,8 +6,8 @@ kind of edit costs."""
 import numpy as np
 import pytest
 
-from core.accel import Accel
-from core.dynamic_accel import DynamicAccel, TraceInterrupted
+from core.geometry.accel import Accel
+from core.geometry.dynamic_accel import DynamicAccel, TraceInterrupted
 
 
 def make_objects(rng, count=6, per=40, spread=1.0):
@@ -221,7 +221,7 @@ def test_compact_keeps_used_vertices_in_order(rng, count):
     """_compact (sorting a few objects' indices, or marking every vertex for
     many) gives the vertices the triangles use, in index order, and the
     triangles re-indexed into them."""
-    from core.dynamic_accel import _compact
+    from core.geometry.dynamic_accel import _compact
     v = rng.random((20_000, 3)).astype(np.float32)
     t = rng.integers(0, len(v), (count, 3)).astype(np.int32)
     used = np.zeros(len(v), bool)

@@ -1,4 +1,4 @@
-"""Emissive triangles as lights (core/emissive_triangles.py): the density of
+"""Emissive triangles as lights (core/lights/emissive_triangles.py): the density of
 the points they give next-event estimation, in both of its regimes (area
 sampling from afar, solid-angle sampling close by), the pdf a BSDF ray that
 hits one is weighed with, which faces emit, and their bounds.
@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from core import Materials, make_scene
-from core.emissive_triangles import EmissiveTriangles
+from core.lights.emissive_triangles import EmissiveTriangles
 
 N = 200_000
 CORNERS = np.array([[-0.5, -0.4, 1.0], [0.7, -0.2, 1.1], [0.1, 0.6, 1.2]])

@@ -1,4 +1,4 @@
-"""The world as a light (core.environment): Cycles' equirectangular mapping and
+"""The world as a light (core.lights.environment): Cycles' equirectangular mapping and
 importance map, the sampler against its density (chi-square), the density's
 normalisation, and the world in the path tracer: a closed form under a
 constant world, quadrature under a map, and the variance NEE + MIS saves on a
@@ -11,10 +11,10 @@ import pytest
 
 from chi2 import ChiSquareTest, Domain, integrate, spherical_domain
 from core import Camera, Materials, make_scene
-from core.environment import Environment, direction_to_uv, uv_to_direction
+from core.lights.environment import Environment, direction_to_uv, uv_to_direction
 from core.integrators.path import escaped_radiance
-from core.lights import INF_DIST, LightSet
-from core.sampling import power_heuristic, square_to_cosine_hemisphere
+from core.lights.light_set import INF_DIST, LightSet
+from core.sampling.warps import power_heuristic, square_to_cosine_hemisphere
 from scenes import Builder, look_at, path_samples, quad
 
 N = 400_000

@@ -1,4 +1,4 @@
-"""Errors inside a frame say where they happened (core/errors.py): the
+"""Errors inside a frame say where they happened (core/util/errors.py): the
 frame's stage and the material or object, as notes on the exception that the
 add-on's report shows."""
 
@@ -6,7 +6,7 @@ import pickle
 
 import pytest
 
-from core.errors import context, describe, noted, notes
+from core.util.errors import context, describe, noted, notes
 
 
 def test01_innermost_context_of_each_kind_is_noted():
@@ -34,8 +34,8 @@ def test03_plain_errors_describe_themselves():
 
 
 def test04_a_failing_material_graph_names_its_material(monkeypatch):
-    from core.shader import CompiledShader
-    from core.shader.graph import Link, Node, ShaderGraph
+    from core.materials.shader import CompiledShader
+    from core.materials.shader.graph import Link, Node, ShaderGraph
     shader = CompiledShader(ShaderGraph(nodes=[Node("BSDF_DIFFUSE", {"Color": (0.5, 0.5, 0.5)})],
                                         output=Link(0, "BSDF"), name="Brick"))
 

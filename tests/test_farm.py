@@ -88,7 +88,7 @@ def render(setup, out, first, last, *extra):
 
 
 def combined(path):
-    from core.film import read_exr
+    from core.camera.film import read_exr
     return read_exr(path)
 
 
@@ -105,7 +105,7 @@ def cycles_reference(blend, frames, spp=1024):
     """Cycles at ``spp`` of the given frames (same bounces as the file's ReSTIR
     settings), rendered in this process."""
     import bpy
-    from core.film import read_exr
+    from core.camera.film import read_exr
     bpy.ops.wm.open_mainfile(filepath=str(blend), load_ui=False)
     scene = bpy.context.scene
     bounces = scene.restir_gi.max_bounces if hasattr(scene, "restir_gi") else 2

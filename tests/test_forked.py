@@ -1,4 +1,4 @@
-"""The twin process of a render loop (core/forked.py, Workers.twin): both
+"""The twin process of a render loop (core/workers/forked.py, Workers.twin): both
 processes compute half of every pass and exchange the rest, so the results
 are those of one process; failures on either side end in an exception or in
 the parent computing alone, never in a lost range or a leftover process."""
@@ -10,8 +10,8 @@ import numpy as np
 import pytest
 
 from core import RenderContext, RenderSettings, render_frame
-from core import forked
-from core.parallel import MIN_PIXELS_PER_WORKER, Workers
+from core.workers import forked
+from core.workers.parallel import MIN_PIXELS_PER_WORKER, Workers
 from core.render import render_restir
 from core.restir import BIASED, UNBIASED, ReSTIRGI, ReSTIRSettings
 from scenes import cornell_box

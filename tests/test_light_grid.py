@@ -1,4 +1,4 @@
-"""Emitters chosen by where the shading point is (core/light_grid.py): the
+"""Emitters chosen by where the shading point is (core/lights/light_grid.py): the
 probabilities are a distribution at every point, sampling follows them, the
 near emitters get more and none falls below its defensive share of power, and
 next-event estimation over many lamps stays unbiased."""
@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 
 from chi2 import pooled_chi2
-from core.light_grid import DEFENSIVE, MAX_CLUSTERS, LightGrid
-from core.lights import LightSet
+from core.lights.light_grid import DEFENSIVE, MAX_CLUSTERS, LightGrid
+from core.lights.light_set import LightSet
 from core import Materials
 from core.scene import LIGHT_AREA, LIGHT_POINT, LIGHT_SPOT, Lights, make_scene
 

@@ -1,4 +1,4 @@
-"""Emitters of core.lights against closed-form or numerically integrated
+"""Emitters of core.lights.light_set against closed-form or numerically integrated
 irradiance (conventions in docs/cycles-conventions.md), the consistency of
 light sampling with what BSDF rays see (MIS of both converges to the same
 irradiance), and power-proportional light selection."""
@@ -8,10 +8,11 @@ import pytest
 
 from chi2 import pooled_chi2
 from core import Lights, Materials, make_scene
-from core.accel import Accel
-from core.interaction import surface_hits
-from core.lights import LightSet
-from core.sampling import luminance, power_heuristic, square_to_cosine_hemisphere
+from core.geometry.accel import Accel
+from core.geometry.interaction import surface_hits
+from core.lights.light_set import LightSet
+from core.util.vectors import luminance
+from core.sampling.warps import power_heuristic, square_to_cosine_hemisphere
 from core.scene import (LIGHT_AREA, LIGHT_POINT, LIGHT_SPOT, LIGHT_SUN, SHAPE_DISK, SHAPE_ELLIPSE,
                         SHAPE_RECTANGLE, SHAPE_SQUARE)
 
@@ -400,7 +401,7 @@ def test10_selection_by_power_and_place(rng):
     which[(which < 0)] = 4          # area light and triangle: the rest, told apart by distance below
     which[(which == 4) & (s.wi[:, 2] < 0)] = 5
     counts = np.bincount(which, minlength=6)
-    # The lamps and the triangle are chosen by where p is (core/light_grid.py),
+    # The lamps and the triangle are chosen by where p is (core/lights/light_grid.py),
     # with the probability selection_pmf gives, which sums to one.
     pmf = ls.selection_pmf(np.arange(6), np.repeat(p[None], 6, axis=0))
     assert np.isclose(pmf.sum(), 1.0) and pmf[3] == ls.distribution.pmf[3]

@@ -125,7 +125,7 @@ def _scene(source):
         _mesh("Panel", [[-2, -3.5, 4.5], [2, -3.5, 4.5], [2, 0.5, 4.5], [-2, 0.5, 4.5]], [[0, 1, 2, 3]], mat)
     elif source == "many_lamps":
         # Lamps and small glowing cubes spread over the floor: emitters are
-        # chosen by where the shading point is (core/light_grid.py).
+        # chosen by where the shading point is (core/lights/light_grid.py).
         rng = np.random.default_rng(5)
         for i, (x, y) in enumerate(rng.uniform(-2.7, 2.7, (10, 2))):
             _light(f"Lamp{i}", "POINT", (x, y, rng.uniform(0.3, 2.0)), energy=float(rng.uniform(20, 120)),

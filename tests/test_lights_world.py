@@ -1,4 +1,4 @@
-"""The world as one more light of core.lights.LightSet (core/environment.py):
+"""The world as one more light of core.lights.light_set.LightSet (core/lights/environment.py):
 its share of the selection, its samples and their pdf, NEE with and without
 MIS against escaping BSDF rays (the path tracer's combination) matching
 quadrature, and a constant world that is no NEE light (as in Cycles)."""
@@ -7,10 +7,11 @@ import numpy as np
 import pytest
 
 from core import Lights, Materials, make_scene
-from core.environment import Environment
+from core.lights.environment import Environment
 from core.integrators.path import escaped_radiance
-from core.lights import INF_DIST, LightSet
-from core.sampling import luminance, power_heuristic, square_to_cosine_hemisphere
+from core.lights.light_set import INF_DIST, LightSet
+from core.util.vectors import luminance
+from core.sampling.warps import power_heuristic, square_to_cosine_hemisphere
 from core.scene import LIGHT_POINT, LIGHT_SUN
 
 COLOR = np.array([1.0, 0.5, 0.25])

@@ -1,4 +1,4 @@
-"""Motion blur (core/motion.py, core/object_motion.py,
+"""Motion blur (core/camera/motion.py, core/object_motion.py,
 restir_addon/motion_blur.py) against Cycles, in Path Tracing, and bad input:
 a moving camera, and a moving object under a still camera.
 
@@ -127,7 +127,7 @@ def test_motion_blur_bad_input(addon, reports, tmp_path):
     """A zero shutter renders sharp, a ReSTIR mode says it blurs only the
     camera; never NaN, and the scene is left at its frame."""
     from addon_util import render_exr
-    from core.film import read_exr
+    from core.camera.film import read_exr
     scene = _scene(32, 24, shutter=0.0)
     render_exr(scene, tmp_path / "zero.exr")
     assert np.isfinite(read_exr(tmp_path / "zero.exr")).all()
@@ -168,7 +168,7 @@ def test_camera_motion_blur_in_restir_modes(addon, mode):
 def test_rigid_interpolation():
     """Matrices at the steps come back at the steps' times; halfway between
     two rotations is the rotation by half the angle; rows stay orthonormal."""
-    from core.motion import rigid_at
+    from core.camera.motion import rigid_at
 
     def rz(a, t):
         m = np.eye(4)

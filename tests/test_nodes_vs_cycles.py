@@ -8,7 +8,7 @@ bugs these tests caught while they were written gave block chi 6 to 150).
 
 The anisotropic family is held to a looser block chi: Anisotropic is
 approximated by the isotropic GGX of the same mean roughness
-(core/shader/nodes_shader.py), so the mean agrees but the highlights'
+(core/materials/shader/nodes_shader.py), so the mean agrees but the highlights'
 shape does not (block chi 3.8 at this size; see the README).
 """
 

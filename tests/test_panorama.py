@@ -1,4 +1,4 @@
-"""Panoramic cameras (core/panorama.py): Cycles' equirectangular, fisheye,
+"""Panoramic cameras (core/camera/panorama.py): Cycles' equirectangular, fisheye,
 mirror ball, central cylindrical and cube map face projections against
 Cycles' renders of the same scene, the export of their
 settings, and the ReSTIR modes with a panoramic camera (reprojection through
@@ -131,7 +131,7 @@ def test_panorama_round_trip_and_region():
     """project inverts generate_rays inside the lens; a render region's
     camera traces the rays of the full image's pixels it covers; bad
     settings (zero ranges, zero lens) give finite rays."""
-    from core.camera import crop, generate_rays, project
+    from core.camera.projection import crop, generate_rays, project
     from core.scene import Camera
     rng = np.random.default_rng(3)
     xy = rng.uniform(0, 1, (2000, 2)) * [60, 36]

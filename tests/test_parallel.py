@@ -1,4 +1,4 @@
-"""Whole-image passes on worker threads (core/parallel.py): the split into
+"""Whole-image passes on worker threads (core/workers/parallel.py): the split into
 pixel ranges changes nothing in the result, for path tracing and for every
 ReSTIR GI pass (each range uses the image-wide pixel index for its random
 numbers and reads neighbours from the whole image)."""
@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from core import RenderContext, RenderSettings, render_frame
-from core.parallel import MIN_PIXELS_PER_WORKER, Workers, concat_rows
+from core.workers.parallel import MIN_PIXELS_PER_WORKER, Workers, concat_rows
 from core.restir import BIASED, UNBIASED, ReSTIRGI, ReSTIRSettings
 from scenes import cornell_box
 
@@ -83,7 +83,7 @@ def test03b_many_small_ranges_give_the_same_image(contexts, mode):
 def test03c_consuming_concatenation_matches_and_empties_the_parts():
     """concat_rows(consume=True) gives what np.concatenate gives, for arrays,
     tuples and dataclasses, and leaves nothing of the parts behind."""
-    from core.reservoirs import Reservoirs
+    from core.restir.reservoirs import Reservoirs
     rng = np.random.default_rng(3)
 
     def parts():
@@ -110,7 +110,7 @@ def test03d_map_into_writes_each_range_into_whole_image_arrays():
     """Workers.map_into gives what concat_rows of map gives, for arrays,
     tuples and dataclasses, into arrays it allocates or the caller's (which
     may be of narrower types)."""
-    from core.reservoirs import Reservoirs
+    from core.restir.reservoirs import Reservoirs
     n = 3 * MIN_PIXELS_PER_WORKER + 11
     workers = Workers(2, max_range=1000)
     try:
@@ -184,10 +184,10 @@ def test05_moving_objects_give_the_same_image_on_two_workers(mode):
     one and two workers. The clip of that history to its inner taps was
     decided per range, so pixels starting over took history or not with the
     other rows of their range."""
-    from core import transparency
-    from core.dynamic_accel import DynamicAccel
+    from core.integrators import transparency
+    from core.geometry.dynamic_accel import DynamicAccel
     from core.integrators.base import RAY_EPS_RELATIVE
-    from core.lights import LightSet
+    from core.lights.light_set import LightSet
     settings = ReSTIRSettings(mode=mode, seed=5, max_bounces=3)
     frames = {}
     for threads in (1, 2):

@@ -1,4 +1,4 @@
-"""The reservoir maths of ReSTIR GI (core/reservoirs.py): weighted reservoir
+"""The reservoir maths of ReSTIR GI (core/restir/reservoirs.py): weighted reservoir
 sampling by ``merge``, the contribution weight set by ``finalize``, history
 capping, the row helpers, and resampled importance sampling (RIS) built from
 them: an unbiased estimator whose variance falls as more candidates are seen."""
@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from chi2 import pooled_chi2
-from core.reservoirs import Reservoirs, cap_history, choose, finalize, merge, target
+from core.restir.reservoirs import Reservoirs, cap_history, choose, finalize, merge, target
 
 ALPHA = 1e-3
 
@@ -250,10 +250,10 @@ def test13_choose_selects_in_proportion_to_weight(rng):
 
 
 def test11_stored_reservoirs_keep_rows_within_their_rounding(rng):
-    """The narrow whole-image store (core/reservoir_store.py) gives back
+    """The narrow whole-image store (core/restir/reservoirs.py) gives back
     positions, weights, counts, seeds and triangles exactly, unit vectors
     within 1e-4 rad, radiance within float16 rounding, zero vectors as zero."""
-    from core.reservoir_store import StoredReservoirs
+    from core.restir.reservoirs import StoredReservoirs
     n = 2000
     r = filled(n, rng)
     for f in ("ng2", "n2", "wo2"):

@@ -13,12 +13,12 @@ import numpy as np
 import pytest
 
 from core import Materials, RenderContext, RenderSettings, render_frame
-from core.camera import PixelFilter
+from core.camera.projection import PixelFilter
 from core.render import render_restir, settle_frames, still_frame_weight
 from core.restir import BIASED, UNBIASED, ReSTIRGI, ReSTIRSettings
 from core.restir.accumulation import STILL, Footprint, accumulate, previous_pixels
 from core.restir.gbuffer import trace_gbuffer
-from core.sampling import luminance
+from core.util.vectors import luminance
 from scenes import cornell_box, look_at
 from test_restir_vs_path import Reference, assert_same_mean
 

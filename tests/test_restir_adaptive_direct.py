@@ -12,12 +12,12 @@ import numpy as np
 import pytest
 
 from core import RenderContext
-from core.camera import PixelFilter
+from core.camera.projection import PixelFilter
 from core.restir.adaptive_direct import (HOLD_FRAMES, light_sample_counts, neighbourhood_range,
                                          reprojected_hold, update_noise_hold)
 from core.restir.gbuffer import trace_gbuffer
 from core.restir.initial import initial_samples
-from core.sampling import luminance
+from core.util.vectors import luminance
 from scenes import cornell_box, glow_by_wall
 
 

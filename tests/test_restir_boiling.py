@@ -3,7 +3,7 @@ its 16x16 tile is emptied; ordinary variation is left alone."""
 
 import numpy as np
 
-from core.reservoirs import Reservoirs
+from core.restir.reservoirs import Reservoirs
 from core.restir.boiling import boiling_filter, boiling_threshold_multiple
 
 

@@ -17,12 +17,12 @@ import numpy as np
 import pytest
 
 from core import RenderContext, RenderSettings, render_frame
-from core.parallel import Workers
+from core.workers.parallel import Workers
 from core.render import render_restir
 from core.restir import BIASED, UNBIASED, ReSTIRGI, ReSTIRSettings
 from core.restir.accumulation import COLUMNS
 from core.restir.denoise import MOMENTS, denoise, frame_moments
-from core.sampling import luminance
+from core.util.vectors import luminance
 from scenes import cornell_box
 from test_restir_vs_path import Reference, assert_same_mean, z_limit
 
@@ -290,7 +290,7 @@ def test09_unbiased_mean_is_kept(ctx, reference):
 
 def test10_settings_reach_the_renderer(addon):
     from addon_util import fresh
-    final, draw, vp = addon.restir_addon.final, addon.restir_addon.viewport_draw, addon.restir_addon.viewport
+    final, draw, vp = addon.restir_addon.final, addon.restir_addon.viewport.draw, addon.restir_addon.viewport.session
     scene = fresh(mode="RESTIR_BIASED")
     s = scene.restir_gi
     assert s.use_denoising and s.use_preview_denoising      # on by default in both

@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 
 from core import RenderContext
-from core.camera import PixelFilter
+from core.camera.projection import PixelFilter
 from core.restir.gbuffer import stream_jitter, trace_gbuffer
-from core.sampling import luminance
+from core.util.vectors import luminance
 from scenes import tilted_emitter
 
 SIZE = 20

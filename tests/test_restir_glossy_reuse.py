@@ -12,13 +12,13 @@ import numpy as np
 import pytest
 
 from core import Materials, RenderContext, make_scene
-from core.camera import PixelFilter
+from core.camera.projection import PixelFilter
 from core.restir import UNBIASED, ReSTIRGI, ReSTIRSettings
 from core.restir import glossy_reuse
 from core.restir.gbuffer import FrameImage, trace_rows
 from core.restir.glossy_reuse import OFFSETS, GlossySamples, reuse_glossy
 from core.restir.initial import initial_samples
-from core.sampling import luminance
+from core.util.vectors import luminance
 from scenes import Builder, cornell_box
 from test_restir_world import z_limit
 

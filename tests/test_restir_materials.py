@@ -13,8 +13,8 @@ import pytest
 from core import RenderContext, RenderSettings, render_frame
 from core.integrators.bounces import Bounces
 from core.restir import UNBIASED, ReSTIRGI, ReSTIRSettings
-from core.sampling import luminance
-from core.shader import Link, Node, ShaderGraph
+from core.util.vectors import luminance
+from core.materials.shader import Link, Node, ShaderGraph
 from scenes import cornell_box
 from test_restir_world import assert_same_mean
 
@@ -67,7 +67,7 @@ def setup():
 
 def test01_the_scene_has_glass_and_texture(setup):
     ctx, (mean, _) = setup
-    from core.materials import shading
+    from core.materials.shading import shading
     assert shading(ctx.scene).varying == [4, 5]
     assert (mean > 0.01).mean() > 0.9
 

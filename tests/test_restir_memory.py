@@ -17,7 +17,7 @@ from scenes import cornell_box
 def test_state_size_matches_the_arrays_held(mode, accumulate, narrow, denoise, monkeypatch):
     """Narrow reservoirs (images of NARROW_MIN_PIXELS and more) and float32
     ones; with the denoiser, its moments in the running means."""
-    import core.reservoir_store as store
+    import core.restir.reservoirs as store
     if narrow:
         monkeypatch.setattr(store, "NARROW_MIN_PIXELS", 1)
     scene = cornell_box("area", 40, 24)
@@ -35,11 +35,11 @@ def test_state_size_matches_the_arrays_held(mode, accumulate, narrow, denoise, m
 @pytest.mark.parametrize("mode", [BIASED, UNBIASED])
 def test_narrow_state_changes_images_by_float16_rounding_only(mode, monkeypatch):
     """Large images store their whole-image reservoirs narrowed
-    (core/reservoir_store.py). Against the same frames with float32
+    (core/restir/reservoirs.py). Against the same frames with float32
     reservoirs (as small images keep them), what does not depend on them is
     bit for bit the same and the indirect light differs by about float16's
     rounding of the reused radiance, but for a choice it flips here and there."""
-    import core.reservoir_store as store
+    import core.restir.reservoirs as store
     scene = cornell_box("area", 48, 32)
 
     def frames():
@@ -96,7 +96,7 @@ def test_a_render_too_large_is_refused_with_a_report(addon, reports, tmp_path, m
     reports.log.clear()
     bpy.ops.render.render(write_still=True)
     assert reports.of("ERROR") == []
-    from core.film import read_exr
+    from core.camera.film import read_exr
     img = read_exr(tmp_path / "big.exr")
     assert img.shape[:2] == (48, 64) and np.isfinite(img).all() and img.mean() > 0
 
@@ -116,7 +116,7 @@ def test_viewport_falls_back_to_a_coarser_scale_or_reports(addon, monkeypatch):
     monkeypatch.setattr(memory, "available_bytes",
                         lambda: int((memory.RESTIR_FIXED_BYTES + 64 * 48 / 4 * per_pixel * 1.1)
                                     / memory.IMAGE_BUDGET_SHARE))
-    vp = addon.restir_addon.viewport
+    vp = addon.restir_addon.viewport.session
     for scale, expected in (("AUTO", (32, 24)), ("FULL", None)):
         session = vp.ViewportSession(mode="RESTIR_BIASED", scale=scale, threads=1, max_bounces=1)
         session._divisor = 1                                # as if AUTO had gone fine
@@ -158,7 +158,7 @@ def test_a_still_lets_its_state_go_and_an_animation_keeps_it(addon, tmp_path):
     scene.render.filepath = str(tmp_path / "still.exr")
     bpy.ops.render.render(write_still=True)
     assert stream.restir.history is None and stream.restir.nbytes == 0
-    from core.film import read_exr
+    from core.camera.film import read_exr
     img = read_exr(tmp_path / "still.exr")
     assert np.isfinite(img).all() and img.mean() > 0
     scene.frame_start, scene.frame_end = 1, 2

@@ -13,7 +13,7 @@ import pytest
 
 from core import Camera, Lights, Materials, RenderContext, make_scene
 from core.restir import ReSTIRGI, ReSTIRSettings
-from core.sampling import luminance
+from core.util.vectors import luminance
 from core.scene import LIGHT_POINT
 from scenes import Builder, look_at, quad
 

@@ -10,7 +10,7 @@ per solid angle at x1_to in ``shift_weight``."""
 import numpy as np
 import pytest
 
-from core.reservoirs import Reservoirs
+from core.restir.reservoirs import Reservoirs
 from core.restir.shift import J_CLAMP, J_MAX, J_MIN, jacobian, shift_weight, target_at
 
 

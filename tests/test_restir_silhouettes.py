@@ -8,12 +8,12 @@ import numpy as np
 import pytest
 
 from core import Camera, Lights, Materials, RenderContext, make_scene
-from core.camera import PixelFilter
+from core.camera.projection import PixelFilter
 from core.restir.accumulation import COLUMNS, Accumulation, Footprint, accumulate
 from core.restir.gbuffer import trace_gbuffer
 from core.restir.adaptive_direct import neighbourhood_range
 from core.restir.silhouettes import MAX_EDGE_SHARE, edge_pixels, mean_seen_directly, refine_edges
-from core.sampling import luminance
+from core.util.vectors import luminance
 from scenes import Builder, look_at, quad
 
 SIZE = 24
@@ -186,7 +186,7 @@ def test08_emission_that_varies_over_the_surface():
     G-buffer's do, and many rays per edge pixel work (they took the sparse
     hit record that such graphs cannot read, and every real file with a
     textured emitter failed)."""
-    from core.shader.graph import Link, Node, ShaderGraph
+    from core.materials.shader.graph import Link, Node, ShaderGraph
     scene = emitter_scene()
     screen = ShaderGraph(nodes=[
         Node("TEX_COORD"),

@@ -13,13 +13,13 @@ from types import SimpleNamespace
 import numpy as np
 
 from core import Camera, Materials, RenderContext, make_scene
-from core.environment import Environment
+from core.lights.environment import Environment
 from core.integrators.base import ShadingFrame
-from core.interaction import surface_hits
+from core.geometry.interaction import surface_hits
 from core.restir.initial import world_share
 from core.restir.sky import SKY_KEEP_MIN, pixel_shares, point_plan, sky_light, visible_sky_light
-from core.samplers import hash_keys
-from core.sampling import square_to_uniform_hemisphere
+from core.sampling.samplers import hash_keys
+from core.sampling.warps import square_to_uniform_hemisphere
 from scenes import Builder, look_at, quad
 
 WORLD = (0.6, 0.7, 0.9)

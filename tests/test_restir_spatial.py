@@ -16,12 +16,12 @@ import numpy as np
 import pytest
 
 from core import Camera, Lights, Materials, RenderContext, RenderSettings, make_scene, render_frame
-from core import samplers
+from core.sampling import samplers
 from core.restir import UNBIASED
 from core.restir import spatial as spatial_module
 from core.restir.gbuffer import FrameImage
 from core.restir.spatial import shared_terms, spatial_resample
-from core.reservoirs import Reservoirs
+from core.restir.reservoirs import Reservoirs
 from core.scene import LIGHT_POINT
 from scenes import Builder, look_at, quad
 from test_restir_vs_path import Reference, assert_same_mean, restir_runs

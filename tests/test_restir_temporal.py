@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from core import Camera, Lights, Materials, RenderContext, make_scene
-from core.camera import PixelFilter
+from core.camera.projection import PixelFilter
 from core.restir import BIASED, UNBIASED, ReSTIRGI, ReSTIRSettings
 from core.restir.gbuffer import trace_gbuffer
 from core.restir.temporal import reproject
@@ -35,7 +35,7 @@ def inside_box(width, height):
 def project_pixel(camera, width, height, p):
     """Pixel (x, y), y = 0 at the bottom, where a perspective camera with the
     default horizontal sensor fit images the points p: written out from the
-    pinhole model, independently of core.camera."""
+    pinhole model, independently of core.camera.projection."""
     m = np.asarray(camera.to_world, np.float64)
     axes = m[:3, :3] / np.linalg.norm(m[:3, :3], axis=0)
     local = (np.asarray(p, np.float64) - m[:3, 3]) @ axes
@@ -393,7 +393,7 @@ def test10_unbiased_merge_of_several_initial_samples_keeps_the_mean():
     must weigh it by W = w_sum / (M p_hat), not count it M times (indirect
     light 63 % too bright with two samples before)."""
     from core import RenderSettings, render_frame
-    from core.sampling import luminance
+    from core.util.vectors import luminance
     from test_restir_world import SIZE, assert_same_mean
     ctx = RenderContext.build(sharp(cornell_box("area", SIZE, SIZE)))
     try:

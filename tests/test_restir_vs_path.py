@@ -20,7 +20,7 @@ import pytest
 
 from core import Camera, RenderContext, RenderSettings, render_frame
 from core.restir import BIASED, UNBIASED, ReSTIRGI, ReSTIRSettings
-from core.sampling import luminance
+from core.util.vectors import luminance
 from scenes import cornell_box, look_at, open_yard
 
 SIZE = 16               # image width and height

@@ -17,10 +17,10 @@ import numpy as np
 import pytest
 
 from core import Camera, Materials, RenderContext, RenderSettings, make_scene, render_frame
-from core.environment import Environment
+from core.lights.environment import Environment
 from core.restir import UNBIASED, ReSTIRGI, ReSTIRSettings
 from core.restir.initial import world_sample_radiance, world_share
-from core.sampling import luminance
+from core.util.vectors import luminance
 from scenes import Builder, look_at, quad
 
 SIZE = 12

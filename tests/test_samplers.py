@@ -1,11 +1,11 @@
-"""The hashed random numbers of core.samplers: deterministic, in [0, 1), uniform,
+"""The hashed random numbers of core.sampling.samplers: deterministic, in [0, 1), uniform,
 and independent across dimensions, pixels, samples, frames and seeds."""
 
 import numpy as np
 import pytest
 
 from chi2 import pooled_chi2
-from core import samplers
+from core.sampling import samplers
 
 W, H = 256, 256
 PIX = np.arange(W * H, dtype=np.int64)

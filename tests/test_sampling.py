@@ -1,4 +1,4 @@
-"""Warps of core.sampling against their densities (Mitsuba's test_warp style):
+"""Warps of core.sampling.warps against their densities (Mitsuba's test_warp style):
 each density integrates to one, each sampler matches its density by a
 chi-square test, batch results equal one-at-a-time results, and the MIS and
 frame helpers keep their algebraic properties."""
@@ -8,7 +8,8 @@ import pytest
 
 from chi2 import (ChiSquareTest, box_domain, chi2_sf, disk_domain, integrate, pooled_chi2,
                   spherical_domain, triangle_domain)
-from core import sampling as S
+from core.sampling import warps as S
+from core.util import vectors as V
 
 N = 400_000
 
@@ -173,7 +174,7 @@ def test12b_guided_search_equals_binary_search(weights, rng):
     """Distribution1D.locate (a table of cells) gives np.searchsorted's index for
     every u in [0, 1), at the cdf's own values and around them too, and falls
     back to it for anything else (NaN, 1, negative)."""
-    from core.camera import PixelFilter
+    from core.camera.projection import PixelFilter
     if weights == "filter":
         dist = PixelFilter(1.5).dist        # tails of bins far narrower than a guide cell
     elif weights == "steep":
@@ -220,7 +221,7 @@ def test14_orthonormal_basis(rng):
     special = np.float32([[0, 0, -1], [0, 0, 1], [1, 0, 0], [0, 1, 0], [-0.0, 0.0, -1],
                           [1e-7, 0, -1], [0, -1e-7, -1], [-1, 0, 0]])
     n = np.concatenate([n, near_minus_z, _unit(special)])
-    t, b = S.orthonormal_basis(n)
+    t, b = V.orthonormal_basis(n)
     assert t.dtype == np.float32 and b.dtype == np.float32
     assert np.isfinite(t).all() and np.isfinite(b).all()
     for u, v in ((t, n), (b, n), (t, b)):
@@ -230,8 +231,8 @@ def test14_orthonormal_basis(rng):
     assert np.abs(np.cross(t, b) - n).max() < 1e-5        # right-handed
     # to_local and to_world are inverse.
     w = _unit(rng.normal(size=(len(n), 3)))
-    local = S.to_local(w, t, b, n)
-    assert np.abs(S.to_world(local, t, b, n) - w).max() < 1e-5
+    local = V.to_local(w, t, b, n)
+    assert np.abs(V.to_world(local, t, b, n) - w).max() < 1e-5
     assert np.abs(local[:, 2] - np.einsum("ij,ij->i", w, n)).max() < 1e-6
 
 
@@ -242,7 +243,7 @@ def test15_area_to_solid_angle():
 
 
 def test16_normalize_keeps_zero_vectors():
-    v = S.normalize(np.float32([[3, 4, 0], [0, 0, 0]]))
+    v = V.normalize(np.float32([[3, 4, 0], [0, 0, 0]]))
     assert np.allclose(v, [[0.6, 0.8, 0], [0, 0, 0]])
 
 

@@ -9,10 +9,11 @@ import copy
 import numpy as np
 import pytest
 
-from core import scene_patch, transparency
-from core.dynamic_accel import DynamicAccel
+from core import scene_patch
+from core.integrators import transparency
+from core.geometry.dynamic_accel import DynamicAccel
 from core.integrators.base import RAY_EPS_RELATIVE, RenderContext
-from core.lights import LightSet
+from core.lights.light_set import LightSet
 from core.render import RenderSettings, render_frame
 from scenes import cornell_box
 

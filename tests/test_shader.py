@@ -1,4 +1,4 @@
-"""Shader graphs (core/shader/, core/materials.py) on batches of hits.
+"""Shader graphs (core/shader/, core/materials/shading.py) on batches of hits.
 
 Node evaluators are checked against plain scalar definitions of Cycles'
 formulas; graphs are checked end to end through ``surface_params`` on hits of
@@ -10,12 +10,13 @@ import math
 import numpy as np
 import pytest
 
-from core import Camera, Lights, Materials, bsdf, make_scene
-from core.materials import surface_params, triangle_emission
-from core.shader import CompiledShader, Link, Node, ShaderGraph, WorldGeometry
-from core.shader.nodes_color import blend, hsv_to_rgb, rgb_to_hsv
-from core.shader.nodes_math import MATH
-from core.interaction import SurfaceHits
+from core import Camera, Lights, Materials, make_scene
+from core.bsdfs import bsdf
+from core.materials.shading import surface_params, triangle_emission
+from core.materials.shader import CompiledShader, Link, Node, ShaderGraph, WorldGeometry
+from core.materials.shader.nodes_color import blend, hsv_to_rgb, rgb_to_hsv
+from core.materials.shader.nodes_math import MATH
+from core.geometry.interaction import SurfaceHits
 
 ONE = WorldGeometry(np.array([[0.0, 0.0, 1.0]], np.float32))
 
@@ -167,7 +168,7 @@ def test05_principled_constant_graph_equals_the_material_table():
                                          "Roughness": r["roughness"], "IOR": r["ior"],
                                          "Specular IOR Level": r["specular"]})
         c = CompiledShader(ShaderGraph(nodes=[node_], output=Link(0, "BSDF"))).closure(ONE)
-        from core.materials import params_of
+        from core.materials.shading import params_of
         p = params_of(c, 1)
         for name in ("diffuse", "f0", "alpha", "p_spec"):
             assert np.allclose(getattr(p, name)[0], getattr(table, name)[i], atol=1e-6), (i, name)
@@ -237,7 +238,7 @@ def test08_mapping_texture_inverts_point(rng):
                   {"vector_type": "TEXTURE"})]
     sh = CompiledShader(ShaderGraph(nodes=nodes))
     values = [{"Vector": v}]
-    from core.shader.evaluate import EVALUATORS, Inputs
+    from core.materials.shader.evaluate import EVALUATORS, Inputs
     values.append(EVALUATORS["MAPPING"](Inputs(values, nodes[1], sh), ONE, nodes[1], sh))
     values.append(EVALUATORS["MAPPING"](Inputs(values, nodes[2], sh), ONE, nodes[2], sh))
     assert np.allclose(values[2]["Vector"], v, atol=1e-4)
@@ -318,7 +319,7 @@ def test12_non_finite_inputs_give_finite_parameters(rng):
 
 def test13_three_hits_are_not_a_colour():
     """A batch of exactly three hits keeps per-hit floats apart from constant colours."""
-    from core.shader.world import world_environment
+    from core.lights.world import world_environment
     nodes = [Node("TEX_COORD"), Node("SEPXYZ", {"Vector": Link(0, "Generated")}),
              Node("MATH", {"Value": Link(1, "Z"), "Value_001": 0.0}, {"operation": "MAXIMUM"}),
              Node("BACKGROUND", {"Color": Link(2, "Value", "VALUE", "RGBA"), "Strength": 2.0})]
@@ -337,7 +338,7 @@ def test14_noise_is_gradient_noise(rng):
     """Perlin noise vanishes on the integer lattice, stays within [-1, 1], is
     continuous; normalised fBM lies in [0, 1] (the pattern itself is checked
     against Cycles in tests/test_nodes_vs_cycles.py)."""
-    from core.shader.nodes_noise import fbm, snoise
+    from core.materials.shader.nodes_noise import fbm, snoise
     lattice = rng.integers(-50, 50, (1000, 3)).astype(np.float32)
     assert np.allclose(snoise(lattice), 0.0, atol=1e-6)
     p = rng.uniform(-20, 20, (20000, 3)).astype(np.float32)
@@ -353,7 +354,7 @@ def test15_voronoi_cells(rng):
     """F1 distance is the distance to the nearest jittered cell point (checked
     against a brute-force search over 5x5x5 cells); randomness 0 puts the
     points on the lattice."""
-    from core.shader.nodes_voronoi import cell_random, voronoi_f1
+    from core.materials.shader.nodes_voronoi import cell_random, voronoi_f1
     p = rng.uniform(-5, 5, (500, 3)).astype(np.float32)
     dist, colour, pos = voronoi_f1(p, 1.0)
     base = np.floor(p).astype(np.int32)
@@ -373,7 +374,7 @@ def test16_single_scattering_ggx_is_not_compensated():
     """Cycles' GGX (older files' Glossy and Principled nodes) scatters once:
     no energy put back, unlike Multiscatter GGX; a mixture of both is put
     back in proportion, whether the graph is constant or per hit."""
-    from core.materials import params_of
+    from core.materials.shading import params_of
     wo = np.float32([[0.0, 0.0, 1.0]])
 
     def f0(distribution, kind="BSDF_GLOSSY", mix=None):
@@ -401,8 +402,8 @@ def test17_partly_transparent_emitters_emit_all_their_light():
     the rays passing it too: it sees the emission divided by 1 - t (Cycles
     adds the whole emission and continues through), constant or per hit.
     Light samples on the surface (the triangle's emission) see it undivided."""
-    from core.lights import LightSet
-    from core.materials import surface_emission, transparency
+    from core.lights.light_set import LightSet
+    from core.materials.shading import surface_emission, transparency
     emit = Node("EMISSION", {"Color": (1.0, 0.5, 0.25), "Strength": 2.0})
     constant = [emit, Node("BSDF_TRANSPARENT"),
                 Node("MIX_SHADER", {"Fac": 0.25, "Shader": Link(0, "Emission"), "Shader_001": Link(1, "BSDF")})]
@@ -450,7 +451,7 @@ def test19_sheen_node_per_hit_equals_constant():
     """The Sheen BSDF node (Ashikhmin velvet and Microfiber) in a graph that
     varies over the surface gives, at each hit, the parameters of the same
     graph made constant with that hit's values."""
-    from core.materials import params_of
+    from core.materials.shading import params_of
     xy = np.float32([[0.7, 0.2], [0.9, 0.6], [0.2, 0.9]])
     for distribution in ("ASHIKHMIN", "MICROFIBER"):
         def graph(fac):

@@ -1,4 +1,4 @@
-"""The sheen lobe of core/sheen.py inside core.bsdf: its table against fresh
+"""The sheen lobe of core/bsdfs/sheen.py inside core.bsdfs.bsdf: its table against fresh
 random walks through the fibre layer, sampling against the pdf by
 chi-square, normalisation, energy (white furnace), sample weights, grazing
 angles, and batches against one row at a time."""
@@ -10,9 +10,9 @@ import numpy as np
 import pytest
 
 from chi2 import ChiSquareTest, integrate, spherical_domain
-from core import bsdf, sheen
-from core.materials import params_of
-from core.shader.closure import Closure
+from core.bsdfs import bsdf, sheen
+from core.materials.shading import params_of
+from core.materials.shader.closure import Closure
 
 HEMISPHERE = spherical_domain(cos_range=(0.0, 1.0))
 N = 300_000

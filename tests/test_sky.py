@@ -1,9 +1,9 @@
-"""Blender's Sky Texture models (core/shader/sky.py, sky_scattering.py,
+"""Blender's Sky Texture models (core/materials/shader/sky.py, sky_scattering.py,
 sky_analytic.py) against values derived here another way: the sun's
 transmittance by fine quadrature, an optically thin atmosphere's single
 scattering in closed form, the sun disc's irradiance from its limb darkening,
 Preetham's zenith from the paper's formulas, Hosek-Wilkie's zenith from its
-table; and the environment finding the disc (core/environment.py): NEE alone
+table; and the environment finding the disc (core/lights/environment.py): NEE alone
 gives the irradiance of sky and sun without fireflies."""
 
 import copy
@@ -11,10 +11,10 @@ import copy
 import numpy as np
 import pytest
 
-from core.environment import Environment
-from core.shader import sky_scattering as scattering
-from core.shader.nodes_spectrum import XYZ_TO_REC709
-from core.shader.sky import ScatteringSky, normalised_sun, sky_model
+from core.lights.environment import Environment
+from core.materials.shader import sky_scattering as scattering
+from core.materials.shader.nodes_spectrum import XYZ_TO_REC709
+from core.materials.shader.sky import ScatteringSky, normalised_sun, sky_model
 
 trapezoid = getattr(np, "trapezoid", None) or np.trapz     # numpy 2 renamed it, then removed trapz
 
@@ -144,7 +144,7 @@ def test06_hosek_wilkie_zenith_from_the_table():
     point of row (albedo 0, turbidity 4) alone, and at the zenith (theta =
     gamma = 0) the distribution is (1 + A e^(B / 1.01)) (C + D + F + G (2 /
     (1 - H)^3) + I); times the channel's radiance and 2 pi / 683."""
-    from core.shader.sky_hosek_data import CONFIGS, RADIANCES
+    from core.materials.shader.sky_hosek_data import CONFIGS, RADIANCES
     model = sky("HOSEK_WILKIE", sun_direction=(0.0, 0.0, 1.0), turbidity=4.0, ground_albedo=0.0)
     c = CONFIGS[:, 0, 3, 5]
     f = (1 + c[:, 0] * np.exp(c[:, 1] / 1.01)) * (c[:, 2] + c[:, 3] + c[:, 5] + c[:, 6] * 2 / (1 - c[:, 8]) ** 3

@@ -3,7 +3,7 @@ sky model, the horizon and the sky toward the sun in view, rendered by both
 engines. Mean colour per channel must agree within 3 % and each quadrant's
 brightness within 4 % (the box's shadow falls to one side: a sun turned the
 wrong way, or missing, moves it). The bright, small sun disc lights most of
-the ground: the path tracer finds it by NEE (core/environment.py), and both
+the ground: the path tracer finds it by NEE (core/lights/environment.py), and both
 ReSTIR modes must render the default sky without fireflies or NaN."""
 
 import math

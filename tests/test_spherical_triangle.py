@@ -1,13 +1,13 @@
-"""Sampling emissive triangles by solid angle (core/spherical_triangle.py) and
-its use by next-event estimation (core/lights.py): distribution, solid angles,
+"""Sampling emissive triangles by solid angle (core/lights/spherical_triangle.py) and
+its use by next-event estimation (core/lights/light_set.py): distribution, solid angles,
 the rule that picks it, and the estimate it gives where area sampling is poor."""
 
 import numpy as np
 import pytest
 
 from chi2 import ChiSquareTest, Domain
-from core import spherical_triangle as st
-from core.lights import LightSet
+from core.lights import spherical_triangle as st
+from core.lights.light_set import LightSet
 from test_path import closed_box
 
 N = 400_000

@@ -1,4 +1,4 @@
-"""Point clouds and hair curves (core/strands.py, restir_addon/export/strands.py)
+"""Point clouds and hair curves (core/geometry/strands.py, restir_addon/export/strands.py)
 against Cycles, and their bad input.
 
 Cycles intersects points as spheres and curves as round curves; here both
@@ -8,7 +8,7 @@ Points) and straight strands of tapering radius on a lit floor, Diffuse
 materials; mean within 2 % and block chi < 2.5, as the node tests (hair:
 the tolerance its test states). The
 Principled Hair BSDF is approximated by a diffuse tube of the hair's colour
-(core/shader/nodes_hair.py): its test holds the stated tolerance, not 2 %.
+(core/materials/shader/nodes_hair.py): its test holds the stated tolerance, not 2 %.
 """
 
 import math
@@ -162,7 +162,7 @@ def test_hair_bad_input(addon, reports, tmp_path):
     nothing (or that one strand) and no error; the image is valid."""
     import bpy
     from addon_util import render_exr
-    from core.film import read_exr
+    from core.camera.film import read_exr
     scene = _stage(32, 24)
     _hair("One", counts=[1] + [2] * 35)
     empty = bpy.data.hair_curves.new("Empty")
@@ -179,7 +179,7 @@ def test_hair_bad_input(addon, reports, tmp_path):
 
 
 def test_tessellation_bad_input():
-    from core.strands import spheres, tubes
+    from core.geometry.strands import spheres, tubes
     pos, tris, nrm, kept = spheres([[0, 0, 0], [1, 1, 1], [2, 2, 2], [np.nan, 0, 0]], [0.5, 0.0, -1.0, 0.3])
     assert kept.tolist() == [True, False, False, False] and len(tris) > 0
     assert np.isfinite(pos).all() and np.isfinite(nrm).all()
@@ -201,7 +201,7 @@ def test_tessellation_bad_input():
 @pytest.mark.parametrize("mode", ["RESTIR_BIASED", "RESTIR_UNBIASED"])
 def test_strands_in_restir_modes(addon, reports, tmp_path, mode):
     from addon_util import render_exr
-    from core.film import read_exr
+    from core.camera.film import read_exr
     scene = _stage(32, 24)
     _points()
     _hair()

@@ -1,4 +1,4 @@
-"""Image textures (core/texture.py): Cycles' lookup, storage, alpha and UDIM rules.
+"""Image textures (core/materials/texture.py): Cycles' lookup, storage, alpha and UDIM rules.
 
 The vectorised lookup is checked against a scalar reference written here from
 the definitions (B-spline as the basis function of the distance, wrapping by
@@ -7,7 +7,7 @@ cases), and at points whose values are known exactly."""
 import numpy as np
 import pytest
 
-from core.texture import (Image, ImageSet, from_pixels, lookup, magenta, srgb_to_linear)
+from core.materials.texture import Image, ImageSet, from_pixels, lookup, magenta, srgb_to_linear
 
 INTERPS = ("Closest", "Linear", "Cubic")
 EXTS = ("REPEAT", "EXTEND", "CLIP", "MIRROR")

@@ -1,11 +1,11 @@
-"""Rays through transparent surfaces and past hidden objects (core/transparency.py)."""
+"""Rays through transparent surfaces and past hidden objects (core/integrators/transparency.py)."""
 
 import numpy as np
 
 from core import Camera, Materials, make_scene
 from core.integrators.base import RenderContext
-from core.shader import Link, Node, ShaderGraph
-from core.transparency import TransparentAccel, _hash_uniform
+from core.materials.shader import Link, Node, ShaderGraph
+from core.integrators.transparency import TransparentAccel, _hash_uniform
 from scenes import Builder, quad
 
 

@@ -41,7 +41,7 @@ def test02_view_matrices_give_the_scene_camera(vp):
     """camera_from_view of a camera's own view and projection matrices traces
     the rays the exported camera does (perspective with shift, orthographic)."""
     import bpy
-    from core.camera import generate_rays
+    from core.camera.projection import generate_rays
     from restir_gi.restir_addon.export.camera import export_camera
     build_scene()
     cam = bpy.data.objects["Camera"]
@@ -130,7 +130,7 @@ def test06_idle_thread_does_no_work(vp):
     assert session.close()
 
 
-def test07_engine_callbacks(vp):
+def test07_engine_callbacks(vp, vp_draw):
     """view_update / view_draw / free with stand-ins for the engine and the 3D
     view, view_update called from a depsgraph handler (where depsgraph.updates
     is filled, as in a viewport); no GPU drawing in background mode."""
@@ -148,20 +148,20 @@ def test07_engine_callbacks(vp):
         region=SimpleNamespace(width=40, height=30),
         region_data=SimpleNamespace(view_matrix=cam.matrix_world.inverted(),
                                     window_matrix=cam.calc_matrix_camera(dg, x=40, y=30)))
-    vp.view_update(engine, context, dg)
+    vp_draw.view_update(engine, context, dg)
     session = engine.viewport_session
     assert session is not None and session.running and session.mode == "PATH"
     assert session.work.full_exports == 1
-    vp.view_draw(engine, context, dg)
+    vp_draw.view_draw(engine, context, dg)
     assert "redraw" in calls and not any("failed" in c for c in calls)
 
     # Add-on settings changed in a panel: noticed at the next redraw.
     scene.restir_gi.mode = "RESTIR_BIASED"
-    vp.view_draw(engine, context, dg)
+    vp_draw.view_draw(engine, context, dg)
     assert session.mode == "RESTIR_BIASED" and session.work.settings_updates == 1
 
     def handler(_scene, depsgraph):
-        vp.view_update(engine, context, depsgraph)
+        vp_draw.view_update(engine, context, depsgraph)
 
     bpy.app.handlers.depsgraph_update_post.append(handler)
     try:
@@ -172,9 +172,9 @@ def test07_engine_callbacks(vp):
     assert session.work.light_updates == 1 and session.work.full_exports == 1
     assert session.work.settings_updates == 1
     assert session.wait_for_frame(session.generation, timeout=60)
-    vp.view_draw(engine, context, dg)
+    vp_draw.view_draw(engine, context, dg)
     assert not any("failed" in c for c in calls)
-    vp.free(engine)
+    vp_draw.free(engine)
     assert engine.viewport_session is None
     assert session.close(timeout=10)               # free() did not wait; this does
     assert not session.running and session.frame is None

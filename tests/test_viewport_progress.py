@@ -19,7 +19,7 @@ def test01_stages_in_order(vp, addon):
     """Progress alone: moving after a change, refining on a still view
     (4, 2, 1 after STEP_FRAMES frames each), sampling at full resolution,
     done at the limit; the header names each."""
-    vpp = addon.restir_addon.viewport_progress
+    vpp = addon.restir_addon.viewport.progress
     n = 2 * vpp.STEP_FRAMES + 4           # the sample limit
     p = vpp.Progress(limit=n)
     stages, divisors, texts = [], [], []
@@ -54,7 +54,7 @@ def test02_limit_zero_and_convergence(addon):
     """Limit 0 refines until the image stops changing: CONVERGED_RUN frames
     in a row under CONVERGED_CHANGE, after CONVERGED_MIN_SAMPLES; a
     change above it restarts the run."""
-    vpp = addon.restir_addon.viewport_progress
+    vpp = addon.restir_addon.viewport.progress
     p = vpp.Progress(limit=0)
     p.stepped(1)
     small = vpp.CONVERGED_CHANGE / 2
@@ -77,7 +77,7 @@ def test03_session_refines_a_still_view_to_full_resolution(vp, addon):
     """The session: frames at the budget's resolution while the view moves,
     then 1/4, 1/2, full, then samples to the limit and stops."""
     build_scene()
-    step = addon.restir_addon.viewport_progress.STEP_FRAMES
+    step = addon.restir_addon.viewport.progress.STEP_FRAMES
     session = new_session(vp, mode="RESTIR_BIASED", scale="AUTO", samples=16, frame_budget=1e-6)
     session.resize(96, 64)
     assert session.render_step()

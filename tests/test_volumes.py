@@ -1,4 +1,4 @@
-"""Homogeneous volumes (core/media.py, core/integrators/media_path.py,
+"""Homogeneous volumes (core/integrators/media.py, core/integrators/media_path.py,
 restir_addon/export/volumes.py) against Cycles, in Path Tracing, and bad
 input.
 
@@ -160,7 +160,7 @@ def test_volume_bad_input(addon, reports, tmp_path):
     warnings that name what is not rendered."""
     import bpy
     from addon_util import add_mesh, render_exr
-    from core.film import read_exr
+    from core.camera.film import read_exr
     scene = _stage(32, 24)
     vol = bpy.data.objects.new("Smoke", bpy.data.volumes.new("Smoke"))
     scene.collection.objects.link(vol)
@@ -190,7 +190,7 @@ def test_volume_bad_input(addon, reports, tmp_path):
 def test_media_unit():
     """Transmittance and emission of one interval in closed form; sampling
     gives the right share of scattering and HG samples are normalised."""
-    from core.media import Intervals, hg_pdf, hg_sample
+    from core.integrators.media import Intervals, hg_pdf, hg_sample
     n = 200000
     vals = np.zeros((n, 1, 10))
     vals[:, 0, :3] = (0.5, 1.0, 2.0)

@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Tabulate the sheen lobe of core/sheen.py: writes ``core/sheen_ltc.npy``.
+"""Tabulate the sheen lobe of core/bsdfs/sheen.py: writes ``core/sheen_ltc.npy``.
 
 The model is the one Cycles' Principled sheen approximates (Zeltner, Burley
 and Chiang 2022, "Practical Multiple-Scattering Sheen Using Linearly

@@ -5,12 +5,16 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .. import bsdf, materials, samplers, transparency
-from ..accel import Accel, offset_origins
-from ..lights import INF_DIST, LightSet
-from ..parallel import SERIAL, Workers
-from ..rows import gather, row_max, rows_finite, scale, scatter
-from ..sampling import dot, orthonormal_basis, power_heuristic, to_local, to_world
+from ..bsdfs import bsdf
+from ..materials import shading as materials
+from ..sampling import samplers
+from . import transparency
+from ..geometry.accel import Accel, offset_origins
+from ..lights.light_set import INF_DIST, LightSet
+from ..workers.parallel import SERIAL, Workers
+from ..util.rows import gather, row_max, rows_finite, scale, scatter
+from ..util.vectors import dot, orthonormal_basis, to_local, to_world
+from ..sampling.warps import power_heuristic
 
 RAY_EPS_RELATIVE = 1e-5     # origin offset relative to the scene's extent
 
@@ -22,12 +26,12 @@ class RenderContext:
     accel: Accel
     lights: LightSet
     eps: float
-    workers: Workers = SERIAL   # threads for whole-image passes (core/parallel.py)
+    workers: Workers = SERIAL   # threads for whole-image passes (core/workers/parallel.py)
 
     @staticmethod
     def build(scene, threads=None, processes=True):
         """processes: passes may run their second range in a forked child
-        (core/parallel.py); False keeps them on threads."""
+        (core/workers/parallel.py); False keeps them on threads."""
         eps = RAY_EPS_RELATIVE * scene.extent()
         accel = transparency.wrap(Accel.from_scene(scene, threads), scene)
         return RenderContext(scene, accel, LightSet(scene), eps, Workers(threads, processes=processes))
@@ -48,7 +52,7 @@ class ShadingFrame:
 
     @staticmethod
     def at(scene, surf, camera_ray=False):
-        """Materials evaluated at the hits (core/materials.py; normal maps
+        """Materials evaluated at the hits (core/materials/shading.py; normal maps
         and bump replace ``surf.ns``) and the local frame of their normals."""
         params = materials.surface_params(scene, surf, camera_ray)
         t, b = orthonormal_basis(surf.ns)

@@ -5,7 +5,7 @@ transmission.
 Every continuation ray is of one kind, from the lobe that drew it: a ray
 below the surface is transmission (glass refraction, translucency), above it
 the specular and glass lobes give glossy rays and the diffuse and sheen lobes
-diffuse ones. Transparent pass-through is not a bounce (core/transparency.py).
+diffuse ones. Transparent pass-through is not a bounce (core/integrators/transparency.py).
 As in Cycles (whose kernel limits are the settings plus one), the ray that
 takes a kind's count over its limit is still traced for the emission it
 finds (weighted by MIS against the light sampled at its origin), and the path
@@ -22,7 +22,8 @@ keeps using it as one, with the per-kind limits as attributes.
 
 import numpy as np
 
-from ..bsdf import KIND_DIFFUSE as DIFFUSE, KIND_GLOSSY as GLOSSY, KIND_TRANSMISSION as TRANSMISSION  # noqa: F401
+from ..bsdfs.bsdf import (  # noqa: F401
+    KIND_DIFFUSE as DIFFUSE, KIND_GLOSSY as GLOSSY, KIND_TRANSMISSION as TRANSMISSION)
 KIND_NAMES = ("diffuse", "glossy", "transmission")
 
 

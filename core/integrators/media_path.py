@@ -1,4 +1,4 @@
-"""Path tracing through homogeneous media (core/media.py): the camera pass's
+"""Path tracing through homogeneous media (core/integrators/media.py): the camera pass's
 paths when the scene has volumes.
 
 The same wavefront as path.py, with a second kind of vertex: along every
@@ -24,12 +24,14 @@ of its segment, not to the lamp; world volumes are not rendered.
 
 import numpy as np
 
-from .. import materials, samplers
-from ..accel import RayHits, offset_origins
-from ..interaction import surface_hits
-from ..media import hg_pdf, hg_sample
-from ..rows import gather, row_max, scale, scatter_add
-from ..sampling import dot, power_heuristic
+from ..materials import shading as materials
+from ..sampling import samplers
+from ..geometry.accel import RayHits, offset_origins
+from ..geometry.interaction import surface_hits
+from .media import hg_pdf, hg_sample
+from ..util.rows import gather, row_max, scale, scatter_add
+from ..util.vectors import dot
+from ..sampling.warps import power_heuristic
 from .base import ShadingFrame, direct_light, sample_continuation, shadow_rays
 from .bounces import count, per_kind
 

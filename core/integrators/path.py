@@ -15,13 +15,15 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .. import materials, samplers
-from ..accel import offset_origins
-from ..camera import generate_rays, view_depth
-from ..interaction import surface_hits
-from ..media import media_of
-from ..rows import gather, row_max, scale, scatter, scatter_add
-from ..sampling import luminance, power_heuristic
+from ..materials import shading as materials
+from ..sampling import samplers
+from ..geometry.accel import offset_origins
+from ..camera.projection import generate_rays, view_depth
+from ..geometry.interaction import surface_hits
+from .media import media_of
+from ..util.rows import gather, row_max, scale, scatter, scatter_add
+from ..util.vectors import luminance
+from ..sampling.warps import power_heuristic
 from .base import ShadingFrame, direct_light, sample_continuation
 from .bounces import binding, count, per_kind
 

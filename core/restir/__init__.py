@@ -14,14 +14,15 @@ import threading
 import time
 import numpy as np
 
-from .. import materials, samplers
-from ..errors import context
-from ..camera import PixelFilter
-from ..parallel import release_free_memory
-from ..reservoir_store import NARROW_MIN_PIXELS
-from ..reservoirs import cap_history, finalize, merge
-from ..rows import gather, scale, scatter, scatter_add
-from ..sampling import luminance
+from ..materials import shading as materials
+from ..sampling import samplers
+from ..util.errors import context
+from ..camera.projection import PixelFilter
+from ..workers.parallel import release_free_memory
+from .reservoirs import NARROW_MIN_PIXELS
+from .reservoirs import cap_history, finalize, merge
+from ..util.rows import gather, scale, scatter, scatter_add
+from ..util.vectors import luminance
 from .accumulation import (COLUMNS, Accumulation, accumulate, geometric_edges, light_range, previous_pixels,
                            restart, same_view)
 from .adaptive_direct import light_sample_counts, reprojected_hold, update_noise_hold
@@ -181,7 +182,7 @@ class ReSTIRGI:
         spent("validation", t)
 
         # Every pass below is per pixel, so workers take pixel ranges
-        # (core/parallel.py); spatial reuse reads neighbours from the whole
+        # (core/workers/parallel.py); spatial reuse reads neighbours from the whole
         # image, so it waits for all temporal reservoirs. Each range's outputs
         # go straight into whole-image arrays (Workers.map_into), and its
         # G-buffer hits and shading frames live only while the range runs:

@@ -24,9 +24,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..camera import generate_rays, project
-from ..rows import gather
-from ..sampling import luminance
+from ..camera.projection import generate_rays, project
+from ..util.rows import gather
+from ..util.vectors import luminance
 from .adaptive_direct import neighbourhood_range
 
 DEPTH_REL_MAX = 0.1
@@ -366,7 +366,7 @@ def accumulate(prev, footprint, direct, indirect, albedo, normal, cap, alpha=1.0
         # quick start's sliding box (bench/quick_start.py: black 0.31 and
         # 0.44 % of frames 12 and 24 against 0.63 and 0.91). Decided per row:
         # a row must not depend on the other rows of its pass's range
-        # (core/parallel.py); the clip was applied to a whole range when any
+        # (core/workers/parallel.py); the clip was applied to a whole range when any
         # of its rows read outer taps, so images differed with the workers.
         if hist is None:
             hist = np.zeros_like(new)

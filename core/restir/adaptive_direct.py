@@ -19,7 +19,7 @@ samples, so each frame's direct light stays an unbiased estimate.
 
 import numpy as np
 
-from ..sampling import luminance
+from ..util.vectors import luminance
 
 NOISE_RELATIVE = 0.3    # neighbours differing by more than this (of the brightest) flag a pixel
 HOLD_FRAMES = 8         # frames a flag lasts after its last trigger

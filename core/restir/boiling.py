@@ -10,7 +10,7 @@ default strength 0.2; strength 0 turns the filter off).
 
 import numpy as np
 
-from ..reservoirs import target
+from .reservoirs import target
 
 TILE = 16
 

@@ -37,7 +37,7 @@ the light's variance over the pixel's history. Here:
 4. Remodulation by the albedo, plus the direct light and the radiance seen
    directly.
 
-Every step is a whole-image pass over pixel ranges (core/parallel.py). A
+Every step is a whole-image pass over pixel ranges (core/workers/parallel.py). A
 range computes the image rows it touches; the taps read neighbouring rows
 from the whole-image arrays of the step before, so the image does not depend
 on how the pixels are split.
@@ -51,7 +51,7 @@ temporal gradients are not done here.
 
 import numpy as np
 
-from ..sampling import luminance
+from ..util.vectors import luminance
 from .accumulation import COLUMNS
 from .edge_filter import Image, atrous, depth_gradient, surface_blur, variance
 

@@ -6,13 +6,14 @@ from functools import cached_property
 
 import numpy as np
 
-from .. import materials, samplers
-from ..camera import generate_rays, view_depth
+from ..materials import shading as materials
+from ..sampling import samplers
+from ..camera.projection import generate_rays, view_depth
 from ..integrators.base import ShadingFrame
-from ..interaction import SurfaceHits, surface_hits
-from ..parallel import concat_rows
-from ..reservoirs import Reservoirs
-from ..rows import gather, scatter, scatter_add
+from ..geometry.interaction import SurfaceHits, surface_hits
+from ..workers.parallel import concat_rows
+from .reservoirs import Reservoirs
+from ..util.rows import gather, scatter, scatter_add
 
 
 @dataclass

@@ -42,10 +42,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .. import bsdf
+from ..bsdfs import bsdf
 from ..integrators.base import shadow_rays
-from ..rows import gather, row_max, scale, scatter, scatter_add
-from ..sampling import INV_PI, dot, orthonormal_basis, to_local
+from ..util.rows import gather, row_max, scale, scatter, scatter_add
+from ..sampling.warps import INV_PI
+from ..util.vectors import dot, orthonormal_basis, to_local
 from .initial import path_reused
 
 # The 4 adjacent pixels. One frame's indirect variance on the glossy interior

@@ -17,7 +17,7 @@ NEE_REFERENCE_PDF (a cosine-weighted ray's density along the normal). Bright,
 small regions (a sun in an HDRI) go to NEE, the broad sky to the reservoirs,
 and any such partition of unity keeps both estimates unbiased. The glossy
 lobe is not reused, so its share is plain MIS between NEE and the sample ray.
-A constant world is no NEE light at all (core/lights.py, as in Cycles): it has
+A constant world is no NEE light at all (core/lights/light_set.py, as in Cycles): it has
 no bright directions to find, and its light reaches the reservoirs whole.
 
 Reservoirs carry light for the diffuse lobe only (their target is
@@ -30,17 +30,20 @@ indirect light is this sample's own path-traced estimate, returned apart.
 
 import numpy as np
 
-from .. import bsdf, materials, samplers
-from ..accel import offset_origins
+from ..bsdfs import bsdf
+from ..materials import shading as materials
+from ..sampling import samplers
+from ..geometry.accel import offset_origins
 from ..integrators.base import direct_light
 from ..integrators.bounces import DIFFUSE, binding, first_bounce_counts
 from ..integrators.path import radiance_from_surface
-from ..interaction import surface_hits
-from ..reservoirs import Reservoirs, target
-from ..rows import gather, row_max, scale, scatter, scatter_add
-from ..sampling import (INV_PI, cosine_hemisphere_pdf, dot, power_heuristic,
-                        square_to_cosine_hemisphere, square_to_uniform_hemisphere,
-                        uniform_hemisphere_pdf)
+from ..geometry.interaction import surface_hits
+from .reservoirs import Reservoirs, target
+from ..util.rows import gather, row_max, scale, scatter, scatter_add
+from ..sampling.warps import (
+    INV_PI, cosine_hemisphere_pdf, power_heuristic, square_to_cosine_hemisphere,
+    square_to_uniform_hemisphere, uniform_hemisphere_pdf)
+from ..util.vectors import dot
 
 COSINE = "COSINE"
 UNIFORM = "UNIFORM"

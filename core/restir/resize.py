@@ -22,7 +22,7 @@ from dataclasses import fields, replace
 
 import numpy as np
 
-from ..rows import gather
+from ..util.rows import gather
 from .accumulation import restart
 
 CARRY_FRAMES = 4    # frames of history a resized running mean counts as at most

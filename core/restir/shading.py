@@ -10,8 +10,9 @@ traced a - 1 frames ago from (nearly) this visible point to this sample.
 
 import numpy as np
 
-from ..rows import scale, scatter
-from ..sampling import INV_PI, dot
+from ..util.rows import scale, scatter
+from ..sampling.warps import INV_PI
+from ..util.vectors import dot
 from .shift import visible
 
 VISIBILITY_MAX_AGE = 4      # frames a traced visibility is trusted for

@@ -11,9 +11,9 @@ receiver changes, so its solid-angle density changes by the Jacobian
 import numpy as np
 
 from ..integrators.base import shadow_rays
-from ..reservoirs import target
-from ..rows import gather, scale
-from ..sampling import dot
+from .reservoirs import target
+from ..util.rows import gather, scale
+from ..util.vectors import dot
 
 J_MIN, J_MAX = 0.1, 10.0          # beyond these a shift is rejected
 J_CLAMP = (1.0 / 3.0, 3.0)        # biased mode clamps what is accepted

@@ -29,11 +29,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .. import materials, samplers
-from ..interaction import HitSides, surface_hits
-from ..parallel import concat_rows
-from ..rows import gather
-from ..sampling import dot, luminance
+from ..materials import shading as materials
+from ..sampling import samplers
+from ..geometry.interaction import HitSides, surface_hits
+from ..workers.parallel import concat_rows
+from ..util.rows import gather
+from ..util.vectors import dot, luminance
 from .adaptive_direct import neighbourhood_range
 from .gbuffer import CAMERA_SAMPLE, camera_rays, seen_directly, stream_jitter
 

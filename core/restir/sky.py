@@ -26,11 +26,12 @@ query (no hit record, no shading at the far end).
 
 import numpy as np
 
-from .. import samplers
-from ..analytic_lights import INF_DIST
+from ..sampling import samplers
+from ..lights.analytic import INF_DIST
 from ..integrators.base import shadow_rays
-from ..rows import gather, row_max, scale, scatter
-from ..sampling import dot, square_to_cosine_hemisphere, to_world
+from ..util.rows import gather, row_max, scale, scatter
+from ..util.vectors import dot, to_world
+from ..sampling.warps import square_to_cosine_hemisphere
 from .initial import world_share
 
 SKY_SAMPLE = 0x5C1E5        # key of each pixel's scrambles of its sky ray sequence

@@ -13,11 +13,11 @@ and W = w_sum / p_hat.
 
 import numpy as np
 
-from .. import samplers
-from ..reservoirs import Reservoirs, choose, finalize, target
+from ..sampling import samplers
+from .reservoirs import Reservoirs, choose, finalize, target
 from ..integrators.base import shadow_rays
-from ..rows import gather, scale, scatter
-from ..sampling import dot
+from ..util.rows import gather, scale, scatter
+from ..util.vectors import dot
 from .shift import shift_target, shift_weight, shift_weight_of, target_at
 from .temporal import DEPTH_REL_MAX, NORMAL_COS_MIN
 

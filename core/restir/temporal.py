@@ -10,11 +10,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..camera import project
-from ..reservoir_store import NARROW_MIN_PIXELS, StoredReservoirs, bytes_per_row
-from ..reservoirs import finalize, merge
-from ..sampling import dot
-from ..rows import gather
+from ..camera.projection import project
+from .reservoirs import NARROW_MIN_PIXELS, StoredReservoirs, bytes_per_row
+from .reservoirs import finalize, merge
+from ..util.vectors import dot
+from ..util.rows import gather
 from .accumulation import COLUMNS
 from .denoise import MOMENTS
 from .shift import J_MAX, J_MIN, jacobian, shift_weight, target_at
@@ -66,7 +66,7 @@ _FLAG_BYTES = 1 + 1
 def state_bytes_per_pixel(accumulating=True, pixels=NARROW_MIN_PIXELS, denoise=False):
     """Bytes per pixel of what a frame of ``pixels`` pixels keeps for the
     next (FrameHistory): the temporal and spatial reservoirs (narrowed from
-    NARROW_MIN_PIXELS on: reservoir_store.py), the G-buffer history, two
+    NARROW_MIN_PIXELS on: reservoirs.py), the G-buffer history, two
     flags and, when frames are accumulated, the running means, with the
     denoiser's moments when it is on (docs/memory.md)."""
     return (2 * bytes_per_row(pixels, kept=True) + _GBUFFER_BYTES + _FLAG_BYTES

@@ -13,9 +13,9 @@ import numpy as np
 
 from ..integrators.bounces import first_bounce_counts
 from ..integrators.path import radiance_from_surface
-from ..interaction import SurfaceHits
-from ..parallel import concat_rows
-from ..sampling import luminance
+from ..geometry.interaction import SurfaceHits
+from ..workers.parallel import concat_rows
+from ..util.vectors import luminance
 from .initial import world_sample_radiance
 
 CHANGE_THRESHOLD = 0.25     # relative change of luminance that invalidates a sample

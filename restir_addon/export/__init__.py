@@ -5,7 +5,7 @@ import hashlib
 import numpy as np
 
 from ...core import Lights, make_scene
-from ...core.materials import shading
+from ...core.materials.shading import shading
 from .camera import export_camera, render_size
 from .lights import is_supported, light_row
 from .materials import MaterialTable

@@ -2,8 +2,8 @@
 
 import numpy as np
 
-from ...core.camera import crop
-from ...core.panorama import TYPES as PANORAMA_TYPES
+from ...core.camera.projection import crop
+from ...core.camera.panorama import TYPES as PANORAMA_TYPES
 from ...core.scene import Camera
 
 
@@ -76,7 +76,7 @@ def _export_camera(depsgraph, warn):
 
 
 def panorama_settings(data, warn):
-    """core.Camera fields of a panoramic camera (core/panorama.py); a type
+    """core.Camera fields of a panoramic camera (core/camera/panorama.py); a type
     this engine does not know renders as equirectangular, with a warning."""
     kind = getattr(data, "panorama_type", "FISHEYE_EQUISOLID")
     if kind not in PANORAMA_TYPES:

@@ -1,4 +1,4 @@
-"""Blender images to core ImageSets (core/texture.py), each read once per export.
+"""Blender images to core ImageSets (core/materials/texture.py), each read once per export.
 
 ``ImageCache.key(image)`` registers an image and returns a plain string key;
 every node using the image shares the one ImageSet. What Blender hands over
@@ -12,7 +12,7 @@ every node using the image shares the one ImageSet. What Blender hands over
   scene-linear and premultiplied (Blender premultiplies float buffers on load
   except Non-Color and "Channel Packed" ones) and are kept as float32 (16
   bytes per texel). ``alpha_mode`` and Non-Color decide the storage and the
-  un-premultiplying, as in Cycles (see core/texture.py).
+  un-premultiplying, as in Cycles (see core/materials/texture.py).
 - UDIM (source 'TILED'): ``Image.pixels`` reads only the first tile. The
   others are read from a temporary copy of the image whose leading tiles are
   removed one at a time. The copy reloads tiles from their files, packed data
@@ -44,7 +44,7 @@ from contextlib import contextmanager
 
 import numpy as np
 
-from ...core.texture import ImageSet, from_pixels, magenta
+from ...core.materials.texture import ImageSet, from_pixels, magenta
 
 MAX_SIZE = 8192
 

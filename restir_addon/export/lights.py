@@ -2,7 +2,7 @@
 
 import numpy as np
 
-from ...core.shader.nodes_spectrum import blackbody_rec709
+from ...core.materials.shader.nodes_spectrum import blackbody_rec709
 from .node_graph import translate
 from .node_values import uses_nodes
 
@@ -79,7 +79,7 @@ def _node_emission(light, warn):
     a Light Falloff in it as the light's falloff (``_falloff``). Textures in
     a light's nodes vary over the light, which is not modelled: a warning,
     and the value they give at the light's centre."""
-    from ...core.shader import CompiledShader, WorldGeometry   # noqa: PLC0415
+    from ...core.materials.shader import CompiledShader, WorldGeometry   # noqa: PLC0415
     plain = _plain_emission(light.node_tree)
     if plain is not None:
         return plain, 0.0, 0.0

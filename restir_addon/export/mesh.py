@@ -96,7 +96,7 @@ def _render_uv_layer(me):
 
 
 def read_corner_data(me, keys, warn, name=""):
-    """Corner data the materials' nodes read (core/shader/geometry.py keys):
+    """Corner data the materials' nodes read (core/materials/shader/geometry.py keys):
     ``uv:<map>`` (T, 3, 2), ``color:<attribute>`` (T, 3, 4), ``tangent:<map>``
     (T, 3, 4: tangent and bitangent sign), ``generated`` (T, 3, 3). A map or
     attribute the mesh lacks reads as zeros, with a warning."""

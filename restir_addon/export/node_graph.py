@@ -1,4 +1,4 @@
-"""Blender shader node trees to plain shader graphs (core/shader/graph.py).
+"""Blender shader node trees to plain shader graphs (core/materials/shader/graph.py).
 
 Follows what Blender 5 does before Cycles sees a tree (it inlines the tree:
 groups flattened, reroutes and muted nodes removed), so the graph means what
@@ -38,7 +38,7 @@ an image is known by its name.
 
 from collections import namedtuple
 
-from ...core.shader.graph import Link, Node, ShaderGraph
+from ...core.materials.shader.graph import Link, Node, ShaderGraph
 
 from .node_values import COLOR, FLOAT, SHADER, VECTOR, convert, node_props, plain, uses_nodes, zero
 from .volumes import read_volume
@@ -113,7 +113,7 @@ def translate(tree, output_types=("OUTPUT_MATERIAL",), images=None, name=""):
             if surface is not None and not surface.is_linked and "OUTPUT_MATERIAL" in output_types:
                 # Cycles' boundary of a volume-only material (a smoke domain,
                 # a fog box around the scene) lets light through: only the
-                # medium inside it shows (core/media.py).
+                # medium inside it shows (core/integrators/media.py).
                 graph.output = Link(graph.add(Node("BSDF_TRANSPARENT", {"Color": (1.0, 1.0, 1.0)},
                                                    name="Volume boundary")), "BSDF")
         displacement = output.inputs.get("Displacement")

@@ -9,7 +9,7 @@ particle system's or vertex/face instancing's parent), or on the object
 itself when it is not instanced. Numbers become grey (x, x, x, 1), arrays of
 2 to 4 numbers a vector or colour (alpha 1 unless given); anything else, or
 a missing name, reads zero, as in Cycles. The core reads them from
-``scene.object_info`` under the need's name (core/shader/geometry.py).
+``scene.object_info`` under the need's name (core/materials/shader/geometry.py).
 """
 
 import numbers

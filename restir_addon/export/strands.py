@@ -1,9 +1,9 @@
 """Point clouds and hair curves of the evaluated scene as MeshData: spheres
-and tubes of triangles (core/strands.py), radii as Cycles reads them."""
+and tubes of triangles (core/geometry/strands.py), radii as Cycles reads them."""
 
 import numpy as np
 
-from ...core.strands import spheres, spline_steps, tubes
+from ...core.geometry.strands import spheres, spline_steps, tubes
 from .mesh import MeshData
 
 STRAND_TYPES = {"POINTCLOUD", "CURVES"}
@@ -93,7 +93,7 @@ def _shape_radius(shape, root, tip, time):
 
 def particle_hair(obj, warn=None):
     """MeshData (object space) of the object's hair particle systems drawn as
-    strands (Render As Path), as tubes (core/strands.py), or None. Strands
+    strands (Render As Path), as tubes (core/geometry/strands.py), or None. Strands
     are read point by point (ParticleSystem.co_hair, world space), at most
     MAX_HAIR_POINTS per object; radii as Cycles takes them (root and tip
     radius x radius scale / 2, the shape, a closed tip)."""

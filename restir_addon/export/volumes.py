@@ -1,4 +1,4 @@
-"""A material's Volume socket as a homogeneous medium (core/media.py):
+"""A material's Volume socket as a homogeneous medium (core/integrators/media.py):
 absorption and scattering coefficients, emission and anisotropy, as Cycles'
 volume closures define them.
 
@@ -113,7 +113,7 @@ class _Reader:
 
 
 def read_volume(socket, warn):
-    """The medium dict of a Volume socket (core/media.py), or None if it
+    """The medium dict of a Volume socket (core/integrators/media.py), or None if it
     gives none."""
     sa, ss, em, gs = _Reader(warn).closure(socket)
     if not (np.max(sa) > 0 or np.max(ss) > 0 or np.max(em) > 0):

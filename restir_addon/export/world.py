@@ -1,6 +1,6 @@
 """The world: its node graph (node_graph.py) as a core Environment light."""
 
-from ...core.shader.world import world_environment
+from ...core.lights.world import world_environment
 from .node_graph import world_graph
 
 

@@ -1,0 +1,364 @@
+"""A twin process for the second core: the same computation, half of each pass.
+
+Two threads calling numpy at once hand the GIL to each other at every call,
+and on a virtual machine each hand-over wakes the other core: the passes of a
+320x180 frame make tens of thousands of calls of a few microseconds, and two
+threads ran them barely faster than one (bench/bench_threads.py: a chain of
+numpy calls over 28,800 rows, 1.28x on two threads, 1.86x on two processes).
+
+``Twin`` forks the process at the start of a render loop (the frames of a
+still, the samples of a path-traced image). Both processes then run the same
+code on the same data, which is deterministic (per-pixel random numbers from
+image-wide indices). At every whole-image pass (``Workers.map``) each computes
+its half of the pixel ranges and the two exchange their results, so both hold
+the whole pass and go on alike; the serial work between passes is done by
+both. Only the parent (the leader) reports progress and decides to stop; when
+the loop ends the child is killed, or parked (``serve``) until the next loop
+resumes it (the next frame of an animation whose camera alone moved:
+Workers.twin's Continuation). The copy-on-write page faults that follow a
+fork are paid once per fork, not at every pass. Each pass is split where the
+two processes took equal time on it the last times.
+
+Exchange: each side writes a pass's results (pickle protocol 5, arrays as
+raw buffers) into an anonymous memory file of its own, two of them used in
+turn, and announces it on a pipe with the pass's number and size; a reader
+is always done with a file before its writer reuses it (it answers each
+message before the next is written). If the child dies, diverges or cannot
+send, or does not answer in time (WAIT_SECONDS), the parent computes the
+child's ranges itself and goes on alone; an
+exception raised by the pass in the child is raised again in the parent.
+
+Only on Linux (no fork on Windows; unsafe on macOS with system frameworks);
+elsewhere passes use threads.
+"""
+
+import os
+import pickle
+import select
+import signal
+import struct
+import sys
+import threading
+import time
+import traceback
+import warnings
+
+import numpy as np
+
+AVAILABLE = sys.platform.startswith("linux") and hasattr(os, "fork") and hasattr(os, "memfd_create")
+
+_HEADER = struct.Struct("<QQ")      # pass number, bytes in the memory file
+IDLE_SECONDS = 60.0     # a parked twin that is not resumed within this exits
+WAIT_SECONDS = 30.0     # the parent waits for the child's half of a pass at least this long, and
+WAIT_FACTOR = 20.0      # this many times its own half's time: then it goes on alone (a child
+                        # stuck in a lock some other thread held at the fork never answers)
+
+
+class TwinLost(RuntimeError):
+    """The other process ended or diverged."""
+
+
+_local = threading.local()     # the render loop's Twin, on the thread that runs it
+
+
+def active():
+    """The Twin of the render loop this thread runs, or None (another thread
+    of the process, a viewport's say, never exchanges with it)."""
+    return getattr(_local, "twin", None)
+
+
+class Twin:
+    """The two processes of a forked render loop; ``leader`` in the parent."""
+
+    def __init__(self):
+        self.leader = True
+        self.pid = None
+        self.calls = 0
+        self.in_pass = False
+        self.balance = {}       # pass -> the parent's share of its pixels
+        self._files = None
+        self._pipes = None
+
+    @staticmethod
+    def start(balance=None):
+        """Fork; returns the Twin in both processes (None if it could not fork).
+        balance: the passes' splits learnt by an earlier loop."""
+        twin = Twin()
+        twin.balance = dict(balance or {})
+        files, pipes = [], []
+        try:
+            files = [os.memfd_create("restir-twin", os.MFD_CLOEXEC) for _ in range(4)]
+            pipes = [os.pipe(), os.pipe()]          # parent -> child, child -> parent
+            with warnings.catch_warnings():
+                # Python 3.12+ warns that a fork of a multi-threaded process
+                # (Blender's is) may leave the child stuck on a lock another
+                # thread held: such a child never answers, and the parent
+                # goes on alone after WAIT_SECONDS (see above).
+                warnings.filterwarnings("ignore", r"This process \(pid=\d+\) is multi-threaded",
+                                        DeprecationWarning)
+                pid = os.fork()
+        except OSError:
+            for fd in files + [fd for p in pipes for fd in p]:
+                os.close(fd)
+            return None
+        (p2c_r, p2c_w), (c2p_r, c2p_w) = pipes
+        if pid == 0:
+            # Nothing may raise out of here in the child: it would unwind
+            # through the caller's stack (Blender's render code) in a copy of
+            # the process.
+            try:
+                twin.leader = False
+                os.close(p2c_w)
+                os.close(c2p_r)
+                twin._pipes = (p2c_r, c2p_w)                 # read from, write to
+                twin._files = (files[2:], files[:2])         # mine, theirs
+                if threading.current_thread() is threading.main_thread():
+                    signal.signal(signal.SIGINT, signal.SIG_DFL)
+                _die_with_parent()
+            except BaseException:
+                os._exit(1)
+        else:
+            twin.pid = pid
+            os.close(p2c_r)
+            os.close(c2p_w)
+            twin._pipes = (c2p_r, p2c_w)
+            twin._files = (files[:2], files[2:])
+        _local.twin = twin
+        return twin
+
+    def park(self):
+        """(parent) Leave the twin waiting for the next loop (``resume``);
+        this thread has no active twin meanwhile."""
+        if active() is self:
+            _local.twin = None
+
+    def resume(self, fn, args):
+        """(parent) Start the next loop in the parked twin: it runs
+        fn(*its_state, *args) (see ``serve``). False if the twin is gone."""
+        if self.pid is None:
+            return False
+        try:
+            done, _ = os.waitpid(self.pid, os.WNOHANG)
+        except ChildProcessError:
+            done = self.pid
+        if done:                    # exited (idle too long, or killed)
+            self.pid = None
+            return False
+        k = self.calls
+        try:
+            self._send(k, (fn, args))
+        except TwinLost:
+            return False
+        self.calls += 1
+        _local.twin = self
+        return True
+
+    def serve(self, state):
+        """(child) Wait for the parent's next loop and run it, again and
+        again: state = fn(*state, *args) for each (fn, args) resumed with.
+        Exits when none comes for IDLE_SECONDS, when the parent is gone, or
+        when a loop fails (the parent then goes on alone). Never returns."""
+        try:
+            while True:
+                ready, _, _ = select.select([self._pipes[0]], [], [], IDLE_SECONDS)
+                if not ready:
+                    break
+                k = self.calls
+                fn, args = self._receive(k)
+                self.calls += 1
+                state = fn(*state, *args)
+        except BaseException:
+            pass
+        os._exit(0)
+
+    def split(self, parts):
+        """(mine, theirs) of a pass's ranges: the parent takes the first half."""
+        half = (len(parts) + 1) // 2
+        return (parts[:half], parts[half:]) if self.leader else (parts[half:], parts[:half])
+
+    def rebalance(self, key, parts, seconds):
+        """The parent's share of the next pass ``key`` from the (parent,
+        child) seconds of this one over ``parts``: each side's pixels per
+        second, halfway towards equal times (stable against noise)."""
+        (a, m), (_, b) = parts
+        if min(seconds) <= 0 or m <= a or b <= m:
+            return
+        share = (m - a) / (b - a)
+        fast = (m - a) / seconds[0]
+        slow = (b - m) / seconds[1]
+        even = fast / (fast + slow)
+        self.balance[key] = min(0.9, max(0.1, 0.5 * share + 0.5 * even))
+
+    def exchange(self, payload, timeout=None):
+        """Send this side's payload of the next pass and return the other's
+        (TwinLost if it does not come within timeout seconds)."""
+        k = self.calls
+        self.calls += 1
+        self._send(k, payload)
+        return self._receive(k, timeout)
+
+    def _send(self, k, payload):
+        buffers = []
+        head = pickle.dumps(payload, protocol=5, buffer_callback=buffers.append)
+        raws = [b.raw() for b in buffers]
+        sizes = [len(head)] + [r.nbytes for r in raws]
+        chunks = [struct.pack(f"<Q{len(sizes)}Q", len(sizes), *sizes), head] + raws
+        size = sum(memoryview(c).nbytes for c in chunks)
+        # Written over the last payload but one in this file, never
+        # truncated: the file keeps its pages, and the reader reads ``size``
+        # bytes (truncating and refilling it cost a page fault and a zeroed
+        # page per 4 KiB: half the time of sending a ReSTIR pass's rows).
+        fd = self._files[0][k % 2]
+        done = 0
+        while chunks:
+            n = os.pwritev(fd, chunks[:512], done)
+            done += n
+            while chunks and n >= memoryview(chunks[0]).nbytes:
+                n -= memoryview(chunks.pop(0)).nbytes
+            if chunks and n:
+                chunks[0] = memoryview(chunks[0]).cast("B")[n:]
+        try:
+            os.write(self._pipes[1], _HEADER.pack(k, size))
+        except (BrokenPipeError, OSError) as e:
+            raise TwinLost(f"the other process is gone: {e}") from e
+
+    def _receive(self, k, timeout=None):
+        if timeout is not None:
+            ready, _, _ = select.select([self._pipes[0]], [], [], timeout)
+            if not ready:
+                raise TwinLost(f"the other process did not answer within {timeout:.0f} s")
+        header = _read_exactly(self._pipes[0], _HEADER.size)
+        got_k, size = _HEADER.unpack(header)
+        if got_k != k:
+            raise TwinLost(f"the processes diverged (pass {got_k} against {k})")
+        data = np.empty(size, np.uint8)     # every byte is read into: not zeroed first
+        view = memoryview(data)
+        fd = self._files[1][k % 2]
+        done = 0
+        while done < size:
+            n = os.preadv(fd, [view[done:]], done)
+            if n <= 0:
+                raise TwinLost("short read of the other process's results")
+            done += n
+        (count,) = struct.unpack_from("<Q", data, 0)
+        sizes = struct.unpack_from(f"<{count}Q", data, 8)
+        offset = 8 + 8 * count
+        head = view[offset:offset + sizes[0]]
+        offset += sizes[0]
+        buffers = []
+        for s in sizes[1:]:
+            buffers.append(view[offset:offset + s])
+            offset += s
+        return pickle.loads(head, buffers=buffers)
+
+    def end(self):
+        """Parent: kill and reap the child. Child: exit now (never returns)."""
+        if not self.leader:
+            os._exit(0)
+        if active() is self:
+            _local.twin = None
+        if self.pid is not None:
+            try:
+                os.kill(self.pid, signal.SIGKILL)
+            except ProcessLookupError:
+                pass
+            while True:
+                try:
+                    os.waitpid(self.pid, 0)
+                    break
+                except InterruptedError:
+                    continue
+                except ChildProcessError:
+                    break
+            self.pid = None
+        for fd in list(self._pipes) + list(self._files[0]) + list(self._files[1]):
+            try:
+                os.close(fd)
+            except OSError:
+                pass
+        self._pipes, self._files = (), ((), ())
+
+
+def run_pass(twin, fn, parts, written):
+    """(ranges, [fn(a, b) for (a, b) in ranges]) with the twin computing its
+    share: ``parts`` as given, or, for two ranges, split where the two
+    processes took equal time on this pass the last times (the bottom half
+    of a courtyard, ground and walls, costs twice the sky above it). Both
+    processes derive the split from the times they exchanged, so they agree;
+    the image does not depend on it (per-pixel random numbers).
+
+    written: whole-image arrays fn fills in place by rows; the other side's
+    rows of them are copied in. If the twin is lost the parent computes its
+    ranges too and goes on alone (the child exits)."""
+    key = (getattr(fn, "__qualname__", ""), parts[0][0], parts[-1][1])
+    if len(parts) == 2:
+        a, b = parts[0][0], parts[-1][1]
+        m = a + int(round(twin.balance.get(key, 0.5) * (b - a)))
+        parts = [(a, m), (m, b)]
+    mine, theirs = twin.split(parts)
+    twin.in_pass = True         # passes nested in fn run whole on each side
+    t0 = time.perf_counter()
+    try:
+        results = [fn(a, b) for a, b in mine]
+        payload = ("ok", results, [[w[a:b] for a, b in mine] for w in written], time.perf_counter() - t0)
+    except Exception as e:
+        if twin.leader:
+            raise
+        payload = ("error", _picklable(e), traceback.format_exc())
+    finally:
+        twin.in_pass = False
+    # The parent does not wait forever: a child that does not answer is
+    # left, and its ranges computed here.
+    wait = max(WAIT_SECONDS, WAIT_FACTOR * (time.perf_counter() - t0)) if twin.leader else None
+    try:
+        other = twin.exchange(payload, wait)
+    except TwinLost:
+        twin.end()              # the child exits here; the parent kills it
+        return parts, results + [fn(a, b) for a, b in theirs]
+    if payload[0] == "error":   # the parent raises it
+        twin.end()
+    if other[0] == "error":
+        twin.end()
+        raise other[1]
+    _, their_results, their_rows, their_seconds = other
+    for w, rows in zip(written, their_rows):
+        for (a, b), part in zip(theirs, rows):
+            w[a:b] = part
+    if len(parts) == 2:
+        seconds = (payload[3], their_seconds) if twin.leader else (their_seconds, payload[3])
+        twin.rebalance(key, parts, seconds)
+    return parts, (results + their_results if twin.leader else their_results + results)
+
+
+def _picklable(e):
+    try:
+        pickle.loads(pickle.dumps(e))
+        return e
+    except Exception:
+        out = RuntimeError(f"{type(e).__name__}: {e}")
+        for note in getattr(e, "__notes__", ()):    # where it happened (core/util/errors.py)
+            out.add_note(note)
+        return out
+
+
+def _read_exactly(fd, n):
+    out = b""
+    while len(out) < n:
+        try:
+            chunk = os.read(fd, n - len(out))
+        except InterruptedError:
+            continue
+        if not chunk:
+            raise TwinLost("the other process is gone")
+        out += chunk
+    return out
+
+
+def _die_with_parent():
+    """The child is killed if the parent dies (Linux prctl PR_SET_PDEATHSIG)."""
+    try:
+        import ctypes
+        libc = ctypes.CDLL(None)
+        libc.prctl(1, signal.SIGKILL)
+    except (OSError, AttributeError):
+        pass

@@ -1,0 +1,101 @@
+"""The engine's viewport callbacks and the GPU drawing of the latest frame.
+
+``view_update``, ``view_draw`` and ``free`` only hand work over to the engine's
+ViewportSession: they create, configure and close it and draw its latest frame
+(a few lines, skipped in background mode where bpy has no GPU).
+"""
+
+import traceback
+from dataclasses import replace
+
+import bpy
+import numpy as np
+
+from ..sync.objects import camera_from_region
+from ..final import bounces, restir_settings
+from .session import DEFAULT_DENOISE, DEFAULT_DENOISE_START, DEFAULT_FRAME_BUDGET, DEFAULT_SAMPLES, DEFAULT_SCALE, ViewportSession
+
+
+def session_settings(scene):
+    """ViewportSession arguments from the scene's settings (viewport_* ones
+    are optional: defaults when the scene has none). The viewport denoises
+    with its own toggle (Viewport Denoise), not the final renders' one."""
+    s = scene.restir_gi
+    restir = replace(restir_settings(scene), denoise=bool(getattr(s, "use_preview_denoising", DEFAULT_DENOISE)))
+    return dict(mode=s.mode, scale=getattr(s, "viewport_scale", DEFAULT_SCALE),
+                samples=getattr(s, "viewport_samples", DEFAULT_SAMPLES),
+                frame_budget=getattr(s, "viewport_frame_budget", DEFAULT_FRAME_BUDGET),
+                max_bounces=bounces(scene), seed=s.seed, restir=restir,
+                denoise_start=getattr(s, "preview_denoising_start_sample", DEFAULT_DENOISE_START))
+
+
+def view_update(engine, context, depsgraph):
+    try:
+        session = getattr(engine, "viewport_session", None)
+        if session is None:
+            session = ViewportSession(**session_settings(depsgraph.scene))
+            engine.viewport_session = session
+            session.resize(context.region.width, context.region.height)
+            session.set_view(camera_from_region(context.region_data, depsgraph.scene))
+            session.sync(depsgraph)
+            session.start()
+            return
+        session.configure(**session_settings(depsgraph.scene))
+        session.sync(depsgraph, depsgraph.updates)
+    except Exception as exc:  # never let the viewport die with a traceback
+        traceback.print_exc()
+        engine.update_stats("", f"ReSTIR GI viewport failed: {exc}")
+
+
+def view_draw(engine, context, depsgraph):
+    session = getattr(engine, "viewport_session", None)
+    if session is None:
+        return
+    try:
+        region = context.region
+        # Settings edited in a panel need not reach view_update (no depsgraph
+        # update for add-on properties): compare them on every redraw (cheap).
+        session.configure(**session_settings(depsgraph.scene))
+        session.resize(region.width, region.height)
+        session.set_view(camera_from_region(context.region_data, depsgraph.scene))
+        serial, frame = session.frame_serial, session.frame    # the thread may replace it
+        if frame is not None and not bpy.app.background:
+            _draw(engine, depsgraph.scene, frame, serial, region.width, region.height)
+        engine.update_stats("", f"ReSTIR GI | {session.status()}")
+        if not session.converged:
+            engine.tag_redraw()
+    except Exception as exc:
+        traceback.print_exc()
+        engine.update_stats("", f"ReSTIR GI viewport failed: {exc}")
+
+
+def _draw(engine, scene, frame, serial, width, height):
+    """Draw a frame over the region through Blender's display transform (the
+    texture is uploaded once per new frame)."""
+    import gpu
+    from gpu_extras.presets import draw_texture_2d
+    cached = getattr(engine, "viewport_texture", None)
+    if cached is None or cached[0] != serial:
+        frame = np.ascontiguousarray(frame, np.float32)
+        h, w = frame.shape[:2]
+        pixels = gpu.types.Buffer("FLOAT", w * h * 4, frame.ravel())
+        texture = gpu.types.GPUTexture((w, h), format="RGBA16F", data=pixels)
+        texture.filter_mode(True)   # a coarse frame (moving, refining) upscaled bilinearly, not in blocks
+        cached = (serial, texture)
+        engine.viewport_texture = cached
+    gpu.state.blend_set("ALPHA_PREMULT")
+    engine.bind_display_space_shader(scene)
+    draw_texture_2d(cached[1], (0, 0), width, height)
+    engine.unbind_display_space_shader()
+    gpu.state.blend_set("NONE")
+
+
+def free(engine):
+    """The viewport closed: stop the render thread without waiting for it."""
+    try:
+        session = getattr(engine, "viewport_session", None)
+    except Exception:   # the engine's Blender data may already be gone
+        return
+    if session is not None:
+        engine.viewport_session = None
+        session.close(wait=False)

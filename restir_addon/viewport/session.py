@@ -1,0 +1,391 @@
+"""Viewport rendered mode: incremental scene sync and progressive frames.
+
+``ViewportSession`` holds everything one 3D viewport renders with and is driven
+the same way by the engine and by tests:
+
+- ``sync(depsgraph, updates)`` reads what changed from Blender (UI thread):
+  a transform-only change reads the new matrices (no mesh data), a geometry
+  change re-reads that object's mesh only, material, light and world edits
+  replace their table and never touch triangles or the Embree scenes.
+- ``set_view(camera)`` and ``resize(width, height)`` take the viewport's
+  camera and size (a resize never re-exports).
+- ``render_step(time_budget)`` applies the queued changes to the core scene
+  (moved objects go to the small dynamic Embree scene of
+  ``core.dynamic_accel``) and renders one frame: a ReSTIR GI frame that keeps
+  its reservoirs through camera and object motion, or one more path-traced
+  sample. A still view is refined progressively (viewport_progress.py):
+  coarse frames step to full resolution, carrying what they learnt, then
+  frames are averaged until ``samples`` frames (0: no limit) or convergence.
+- ``start()`` runs ``render_step`` on a background thread (one per session),
+  which never calls bpy; ``close()`` stops it (the frame in progress is
+  abandoned at its next ray batch) and frees the buffers.
+
+Only ``sync`` touches bpy; everything it read is queued under a lock and
+applied by ``render_step`` between two frames, so the render thread never
+sees a scene half-updated.
+
+Here: the session, its settings, the hand-over between the threads and the
+frame loop. The stages of a still view's refinement and the resolution of
+each frame are in viewport_progress.py (Progress, Refinement). What sync
+reads is in viewport_reader.py (SceneReader), how the render side applies
+it in viewport_scene.py (SceneApplier), the bookkeeping (Work, Update,
+Pending) in viewport_state.py. The reading of meshes and cameras is in
+viewport_sync.py, the combined world-space arrays of all objects in
+viewport_arrays.py; the engine's
+callbacks (``view_update``, ``view_draw``, ``free``) and the GPU drawing are
+in draw.py.
+"""
+
+import threading
+import time
+import traceback
+from dataclasses import replace
+
+import numpy as np
+
+from ...core.camera.projection import PixelFilter
+from ...core.integrators.bounces import Bounces
+from ...core.geometry.dynamic_accel import TraceInterrupted
+from ...core.util.errors import describe
+from ...core.camera.film import to_rgba
+from ...core.render import CHUNK_PIXELS, path_trace_pixels
+from ...core.restir import ReSTIRGI, ReSTIRSettings
+from ...core.restir.accumulation import STILL
+from ..sync.scene_sync import SceneSync
+from .progress import SCALES, Progress, Refinement, relative_change
+from ..sync.objects import same_camera
+from ..sync.state import Update, as_update  # noqa: F401 (re-exported for tests)
+from ..sync.objects import camera_from_region, camera_from_view  # noqa: F401
+
+PATH = "PATH"
+
+# Defaults of the viewport settings (see ViewportSession).
+DEFAULT_SCALE = "AUTO"
+DEFAULT_FRAME_BUDGET = 0.25     # seconds per frame the AUTO scale aims for
+DEFAULT_SAMPLES = 1024          # frames (path tracing: samples) of a still view before it
+                                # stops, 0: no limit (Cycles' viewport samples)
+DEFAULT_SETTLE_FRAMES = 8       # frames without edits before moved objects rejoin the static scene
+DEFAULT_DENOISE = True          # ReSTIR GI: the engine's denoiser on the frames (core/restir/denoise.py)
+DEFAULT_DENOISE_START = 1       # the first sample (frame) of a still view shown denoised
+
+# An edit abandons the frame in progress and starts over with it: the frame
+# would show the scene before the edit, and finishing it only delays the one
+# the user waits for (bench/bench_viewport.py, "threaded"). Never two frames in
+# a row, so a continuous drag still gets frames out.
+
+
+class ViewportSession(Refinement, SceneSync):
+    """The state of one viewport: scene, acceleration structure, reservoirs or
+    accumulated samples, the latest frame, and counters of the work done.
+
+    mode: "PATH", "RESTIR_BIASED" or "RESTIR_UNBIASED". scale: "AUTO", "FULL",
+    "HALF" or "QUARTER" (AUTO: while the view moves the finest scale whose
+    frame time fits frame_budget, on a still view stepping to full
+    resolution). samples: frames (path tracing: samples) of a still view
+    before the viewport stops, 0 for no limit; settle_frames: frames without
+    edits before moved objects rejoin the static Embree scene; restir: the
+    ReSTIRSettings to start from (None: the defaults, with the denoiser on as
+    DEFAULT_DENOISE says); denoise_start: with the denoiser on, the first
+    sample of a still view shown denoised (the ones before are shown as
+    accumulated; the frames right after a change count as sample 1).
+    """
+
+    # The viewport's passes stay on threads: its frames are interrupted by
+    # edits, and it runs in Blender's window process.
+    twin_process = False
+
+    def __init__(self, mode="RESTIR_BIASED", scale=DEFAULT_SCALE, samples=DEFAULT_SAMPLES,
+                 frame_budget=DEFAULT_FRAME_BUDGET, settle_frames=DEFAULT_SETTLE_FRAMES, max_bounces=4,
+                 seed=0, restir=None, denoise_start=DEFAULT_DENOISE_START, threads=None):
+        super().__init__(threads)
+        self.progress = Progress(samples)
+        self._set_settings(mode, scale, samples, frame_budget, settle_frames, max_bounces, seed,
+                           restir, denoise_start)
+        self._stop = False
+        self._frame_started = None      # perf_counter() when the frame in progress started
+        self._frame_is_restart = False  # the frame in progress replaces an abandoned one
+        self._next_is_restart = False
+        self._thread = None
+        self._restir = ReSTIRGI()
+        self._frame_index = 0
+        self._divisor = None
+        self._fits = None               # (width, height, divisor) whose image was found to fit
+        self._memory_floor = (None, 1)  # (display size, finest divisor that fits in memory)
+        self._pixel_seconds = None      # measured seconds per pixel per frame
+        self._accum = None              # running sum of frames since the last change
+        self._accum_n = 0               # frames in _accum (weights: a resolution step carries a few)
+        self._shown = None              # the latest published frame, for the convergence test
+        # --- published ---
+        self.frame = None               # (h, w, 4) float32 RGBA, row 0 at the bottom
+        self.frame_serial = 0
+        self.frame_generation = 0       # generation of the changes the frame includes
+        self.last_frame_seconds = None
+        self.last_history_found = None
+        self.error = None
+
+    # ------------------------------------------------------------------ settings
+
+    def _set_settings(self, mode, scale, samples, frame_budget, settle_frames, max_bounces, seed,
+                      restir, denoise_start):
+        if scale != "AUTO" and scale not in SCALES:
+            raise ValueError(f"unknown viewport scale {scale!r}")
+        self.mode = mode
+        self.scale = scale
+        self.samples = max(0, int(samples))
+        self.progress.limit = self.samples
+        self.denoise_start = max(1, int(denoise_start))
+        self.frame_budget = float(frame_budget)
+        self.settle_frames = max(1, int(settle_frames))
+        self.max_bounces = max_bounces if isinstance(max_bounces, Bounces) else int(max_bounces)
+        self.seed = int(seed)
+        base = restir if restir is not None else ReSTIRSettings(denoise=DEFAULT_DENOISE)
+        # One initial sample per pixel per frame, and stored samples validated
+        # every validation_interval frames: the viewport favours frame rate.
+        self.restir_settings = replace(base, mode=mode if mode != PATH else base.mode,
+                                       max_bounces=self.max_bounces, seed=self.seed, samples=1,
+                                       validate_on_change=False)
+        # A still view's frames (after the one that follows a change): one
+        # running mean over all of them, as an F12 still's
+        # (core/render.py), from reservoirs that hold samples for fewer frames.
+        self._still_settings = replace(
+            self.restir_settings, accumulate=STILL if self.restir_settings.accumulate > 1 else 1,
+            temporal_M_cap=min(self.restir_settings.temporal_M_cap, self.restir_settings.still_temporal_M_cap))
+
+    def configure(self, mode="RESTIR_BIASED", scale=DEFAULT_SCALE, samples=DEFAULT_SAMPLES,
+                  frame_budget=DEFAULT_FRAME_BUDGET, settle_frames=DEFAULT_SETTLE_FRAMES, max_bounces=4,
+                  seed=0, restir=None, denoise_start=DEFAULT_DENOISE_START):
+        """New settings (same arguments as the constructor); restarts the image
+        only if something changed. The sample limit and the denoiser's start
+        sample do not restart it (a higher limit goes on refining)."""
+        before = (self.mode, self.scale, self.frame_budget, self.settle_frames, self.restir_settings)
+        limits = (self.samples, self.denoise_start)
+        self._set_settings(mode, scale, samples, frame_budget, settle_frames, max_bounces, seed,
+                           restir, denoise_start)
+        after = (self.mode, self.scale, self.frame_budget, self.settle_frames, self.restir_settings)
+        if before != after:
+            self.work.settings_updates += 1
+            self._queue(settings=True, abandon=True)
+        elif limits != (self.samples, self.denoise_start):
+            with self._cond:
+                self._cond.notify_all()     # a converged render thread may have more to do
+
+    # ------------------------------------------------------------------ Blender side
+
+    def _edit_abandons(self):
+        """An edit abandons the frame in progress unless that frame is itself a restart."""
+        return self._frame_started is not None and not self._frame_is_restart
+
+    def set_view(self, camera):
+        """The viewport camera (a core.Camera; see camera_from_region). Keeps
+        the reservoirs: the next frame reprojects them."""
+        if same_camera(camera, self._view):
+            return
+        self._view = camera
+        self._view_from_scene = False
+        self.work.camera_updates += 1
+        self._queue(camera=camera)
+
+    def resize(self, width, height):
+        """The viewport's size in pixels: new buffers, no export."""
+        size = (max(1, int(width)), max(1, int(height)))
+        if size == self._display:
+            return
+        self._display = size
+        self.work.resizes += 1
+        self._queue(size=size, abandon=True)
+
+    # ------------------------------------------------------------------ render side
+
+    @property
+    def converged(self):
+        """Nothing left to do until something changes."""
+        with self._cond:
+            if not self._pending.empty() or self._applying:
+                return False
+        if self._scene is None or self._camera is None:
+            return True
+        return self.progress.done
+
+    @property
+    def view(self):
+        """The camera the latest sync or set_view asked for."""
+        return self._view
+
+    @property
+    def render_size(self):
+        return None if self._scene is None else (self._scene.width, self._scene.height)
+
+    @property
+    def restir(self):
+        return self._restir
+
+    @property
+    def nbytes(self):
+        """Bytes held by the frame buffers and reservoirs."""
+        total = self._restir.nbytes
+        for a in (self.frame, self._accum):
+            if a is not None:
+                total += a.nbytes
+        return total
+
+    def _should_abandon(self):
+        return self._stop or self._abandon
+
+    def _settings_changed(self):
+        self._restir.reset()
+        self._divisor = None
+        self.progress.divisor = None
+
+    def _scene_changed(self):
+        self._accum, self._accum_n = None, 0
+        self._shown = None
+        self.progress.changed()
+
+    def render_step(self, time_budget=None):
+        """Apply pending changes and render one frame. Returns True if a frame
+        was rendered, False when there is nothing to do (converged, no scene)."""
+        budget = self.frame_budget if time_budget is None else time_budget
+        self.apply_pending()
+        if self._ctx is None:
+            return False
+        if self._frames_since_edit >= self.settle_frames and self._accel.dynamic_keys:
+            counts = self._accel.static_builds, self._accel.dynamic_builds
+            self._accel.settle()
+            self._count_builds(*counts)
+        if self.converged:
+            return False
+        divisor = self._next_divisor(budget)
+        if divisor != self._divisor or divisor != self.progress.divisor:
+            self._step_to(divisor)
+        scene = self._scene
+        w, h = scene.width, scene.height
+        t0 = time.perf_counter()
+        self._frame_is_restart, self._next_is_restart = self._next_is_restart, False
+        self._frame_started = t0
+        try:
+            if self.mode == PATH:
+                color = self._path_sample(self.progress.samples)
+            else:
+                settings = self.restir_settings if self.progress.moving else self._still_settings
+                result = self._restir.render_frame(self._ctx, settings, self._frame_index)
+                self._frame_index += 1
+                self.last_history_found = result.history_found
+                denoised = self.progress.samples + 1 >= self.denoise_start
+                color = result.color if denoised or result.noisy is None else result.noisy
+        except TraceInterrupted:
+            self.work.abandoned_frames += 1
+            self._next_is_restart = True
+            raise
+        finally:
+            self._frame_started = None
+        seconds = time.perf_counter() - t0
+        color = np.nan_to_num(np.asarray(color, np.float64), nan=0.0, posinf=0.0, neginf=0.0)
+        if self.mode == PATH:       # (ReSTIR frames are running means already)
+            self._accum = color if self._accum is None else self._accum + color
+            self._accum_n += 1
+            color = self._accum / self._accum_n
+        frame = to_rgba(color.reshape(h, w, 3))
+        change = relative_change(frame, self._shown)
+        # The frame is counted and published before the progress counts it: a
+        # reader that sees the session converged then also sees every frame
+        # it took.
+        self.work.frames += 1
+        self._frames_since_edit += 1
+        self.frame = self._shown = frame
+        self.frame_generation = self._applied_generation
+        self.frame_serial += 1
+        self.progress.frame_done(change)
+        self.last_frame_seconds = seconds
+        per_pixel = seconds / max(1, w * h)
+        self._pixel_seconds = per_pixel if self._pixel_seconds is None else (
+            0.5 * self._pixel_seconds + 0.5 * per_pixel)
+        return True
+
+    def _path_sample(self, sample):
+        """One path-traced sample per pixel, in batches (an abandon is noticed
+        between them through the accel)."""
+        scene = self._scene
+        n = scene.width * scene.height
+        color = np.zeros((n, 3), np.float32)
+        pixel_filter = PixelFilter(scene.filter_width)
+        for a in range(0, n, CHUNK_PIXELS):
+            stop = min(a + CHUNK_PIXELS, n)
+            color[a:stop] = path_trace_pixels(self._ctx, self.seed, 0, sample, self.max_bounces,
+                                              pixel_filter, a, stop).color
+        return color
+
+    # ------------------------------------------------------------------ thread
+
+    def start(self):
+        """Render on a background thread until closed (idle while converged)."""
+        if self._thread is not None:
+            return
+        self._thread = threading.Thread(target=self._run, name="restir-viewport", daemon=True)
+        self._thread.start()
+
+    @property
+    def running(self):
+        return self._thread is not None and self._thread.is_alive()
+
+    def _run(self):
+        try:
+            while True:
+                with self._cond:
+                    while not self._stop and self._pending.empty() and (self.converged or self.error):
+                        self._cond.wait()
+                    if self._stop:
+                        break
+                try:
+                    self.render_step()
+                    self.error = None
+                except TraceInterrupted:
+                    continue
+                except Exception as exc:  # keep the viewport alive; show the error, wait for edits
+                    traceback.print_exc()
+                    self.error = describe(exc)
+        finally:
+            self._free()
+
+    def wait_for_frame(self, generation=None, timeout=30.0):
+        """Block until a frame including change ``generation`` (default: all
+        queued so far) is published, or the session has nothing to do. For
+        tests and benchmarks, never for the UI."""
+        target = self._generation if generation is None else generation
+        deadline = time.perf_counter() + timeout
+        while time.perf_counter() < deadline:
+            if self.frame is not None and self.frame_generation >= target:
+                return True
+            if not self.running:
+                return False
+            time.sleep(0.002)
+        return False
+
+    def close(self, wait=True, timeout=10.0):
+        """Stop the render thread (its frame in progress is abandoned at the next
+        ray batch) and free the buffers; with wait False, return at once and let
+        the thread free them when it exits."""
+        with self._cond:
+            self._stop = True
+            self._cond.notify_all()
+        thread = self._thread
+        if thread is None:
+            self._free()
+            return True
+        if wait:
+            thread.join(timeout)
+        return not thread.is_alive()
+
+    def _free(self):
+        self._free_scene()
+        self._restir.reset()
+        self._accum, self._accum_n = None, 0
+        self.frame = self._shown = None
+
+    def status(self):
+        if self.error:
+            return f"Error: {self.error}"
+        if self._scene is None:
+            return "Waiting for the scene"
+        w, h = self._scene.width, self._scene.height
+        timing = f" | {self.last_frame_seconds:.2f} s/frame" if self.last_frame_seconds else ""
+        return f"{self.progress.text()} | {w}x{h}{timing}"
