@@ -49,7 +49,7 @@ def child(width, height, frames, bounces):
             bpy.ops.render.render(animation=True)
         seconds = time.perf_counter() - t0
         # (a still lets its state go when done: the figure, which
-        # tests/test_restir_memory.py checks against the arrays held)
+        # tests/addon/test_restir_memory.py checks against the arrays held)
         state_bytes = state_bytes_per_pixel() * width * height
     peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024
     print(json.dumps({"peak": peak, "state": state_bytes, "seconds": seconds}))

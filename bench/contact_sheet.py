@@ -2,12 +2,12 @@
 
     .venv/bin/python bench/contact_sheet.py [--size 128] [--samples 256] [--bounces 8] [--only NAME ...]
 
-Each family of tests/node_families.py (image textures, procedural textures and
+Each family of tests/support/node_families.py (image textures, procedural textures and
 converters, shader mixing, bump and normal maps, attributes, emission, an HDRI
-world), then each feature of tests/feature_scenes.py (panoramic cameras, ...),
+world), then each feature of tests/support/feature_scenes.py (panoramic cameras, ...),
 is rendered by both engines, twice each with independent seeds. Prints
 the mean luminance of each, their ratio and the block chi statistic (near 1
-when the engines agree up to noise; tests/test_nodes_vs_cycles.py asserts the
+when the engines agree up to noise; tests/oracle/test_nodes_vs_cycles.py asserts the
 same at 64x64). Writes bench/out/contact_sheet.png: one row per family, ours
 on the left, Cycles in the middle, their difference (x4, grey = equal) on the
 right.
@@ -35,9 +35,9 @@ def main():
     ap.add_argument("--only", nargs="*", help="families or features to render (default: all)")
     args = ap.parse_args()
     load_addon()
-    from blender_util import compare_with_cycles, open_example, set_resolution
-    from feature_scenes import FEATURES
-    from node_families import FAMILIES
+    from support.blender_util import compare_with_cycles, open_example, set_resolution
+    from support.feature_scenes import FEATURES
+    from support.node_families import FAMILIES
     from restir_gi.core.camera.film import write_png
 
     OUT.mkdir(parents=True, exist_ok=True)

@@ -31,7 +31,7 @@ def main():
     args = ap.parse_args()
     load_addon()
     import test_vs_cycles as cornell
-    from blender_util import compare_with_cycles, set_resolution
+    from support.blender_util import compare_with_cycles, set_resolution
     from restir_gi.core.camera.film import write_png
 
     OUT.mkdir(parents=True, exist_ok=True)

@@ -16,8 +16,22 @@ import numpy as np  # noqa: E402
 import pytest  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
-if str(ROOT) not in sys.path:
-    sys.path.insert(0, str(ROOT))
+
+
+def _load_package(name="restir_gi"):
+    """The repository root as the package ``restir_gi``, the way Blender loads
+    the extension: tests import the renderer as ``restir_gi.core``, the one
+    path the add-on uses too (importing it needs no bpy)."""
+    if name not in sys.modules:
+        spec = importlib.util.spec_from_file_location(
+            name, ROOT / "__init__.py", submodule_search_locations=[str(ROOT)])
+        module = importlib.util.module_from_spec(spec)
+        sys.modules[name] = module
+        spec.loader.exec_module(module)
+    return sys.modules[name]
+
+
+_load_package()
 
 
 @pytest.fixture
@@ -32,23 +46,19 @@ def addon():
     an extension (the repository root as a package). Blender's user resources
     go to a temporary folder, never the user's home."""
     os.environ.setdefault("BLENDER_USER_RESOURCES", tempfile.mkdtemp(prefix="restir-user-"))
-    import bpy
-    name = "restir_gi"
-    if name not in sys.modules:
-        spec = importlib.util.spec_from_file_location(
-            name, ROOT / "__init__.py", submodule_search_locations=[str(ROOT)])
-        module = importlib.util.module_from_spec(spec)
-        sys.modules[name] = module
-        spec.loader.exec_module(module)
+    import bpy  # noqa: F401 (before the add-on registers)
+    module = _load_package()
+    if not getattr(module, "_registered_by_tests", False):
         module.register()
-    yield sys.modules[name]
+        module._registered_by_tests = True
+    yield module
 
 
 @pytest.fixture
 def reports(addon, monkeypatch):
     """Every report the final render makes, as (type, message) in ``.log``
     (addon_util.capture_reports)."""
-    from addon_util import capture_reports
+    from support.addon_util import capture_reports
     return capture_reports(addon, monkeypatch)
 
 
@@ -69,7 +79,7 @@ def recorder(addon):
     """A depsgraph_update_post handler that records ``depsgraph.updates``
     (blender_util.Recorder), removed afterwards."""
     import bpy
-    from blender_util import Recorder
+    from support.blender_util import Recorder
     rec = Recorder()
     yield rec
     if rec in bpy.app.handlers.depsgraph_update_post:
@@ -79,12 +89,12 @@ def recorder(addon):
 @pytest.fixture
 def ng(addon):
     """The add-on's node graph exporter (restir_addon/export/node_graph.py)."""
-    from node_graph_util import modules
+    from support.node_graph_util import modules
     return modules(addon)[0]
 
 
 @pytest.fixture
 def Link(addon):
     """core.materials.shader.graph.Link as the registered add-on has it."""
-    from node_graph_util import modules
+    from support.node_graph_util import modules
     return modules(addon)[2].Link

@@ -43,7 +43,7 @@ factors cancel on the way in and out; they differ for open refracting
 surfaces (a single-sided glass pane) and for cameras or lights inside a medium.
 
 Not included: Cycles' multiple-scattering energy compensation (its ggx_glass_E
-tables), so rough glass loses some energy (tests/test_bsdf_glass.py lists how much).
+tables), so rough glass loses some energy (tests/core/bsdfs/test_bsdf_glass.py lists how much).
 """
 
 import numpy as np

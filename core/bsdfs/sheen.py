@@ -18,7 +18,7 @@ largest channel, one factor for all), reaches the layers below.
 R, a and b are our own tabulation (``sheen_ltc.npy``, 32 x 32 over roughness
 and cos theta_o, written by ``tools/fit_sheen.py``): random walks through the
 fibre layer for R, and a maximum-likelihood fit of (a, b) to the directions
-the walks leave by (tests/test_sheen.py checks R against fresh walks).
+the walks leave by (tests/core/bsdfs/test_sheen.py checks R against fresh walks).
 
 D is a normalised density on the upper hemisphere that can be sampled
 exactly (a cosine sample pushed through the matrix), so the lobe's pdf is D

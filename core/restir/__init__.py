@@ -49,7 +49,7 @@ TRIM_MIN_PIXELS = NARROW_MIN_PIXELS
 MOVING_CAP = 4      # frames of accumulated history kept in a frame where objects moved
 MOVING_M_CAP = 4.0  # M cap of the reservoirs of pixels on objects that moved: a moving
                     # object's light changes as it moves, and with the usual caps its
-                    # reservoirs lagged (tests/test_restir_moving_objects.py)
+                    # reservoirs lagged (tests/core/restir/test_restir_moving_objects.py)
 
 
 def stage(name):

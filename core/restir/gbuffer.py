@@ -202,7 +202,7 @@ def stream_jitter(seed, pix, index):
     indices (its frames) cover its filter evenly, so the running means and a
     still's mean of frames converge faster at edges, as Cycles' pattern does
     over its samples. A straight edge's covered share from a still's 16
-    points (tests/test_samplers.py): squared error 0.0020, against 0.0040
+    points (tests/core/sampling/test_samplers.py): squared error 0.0020, against 0.0040
     for the R2 sequence rotated per pixel used before and 0.013 for
     independent points."""
     return samplers.sobol_jitter(samplers.hash_keys(seed, pix, CAMERA_SAMPLE), index)

@@ -220,7 +220,7 @@ def first_bounce_uniforms(keys, index):
     points over consecutive indices cover the light's surface and the
     BSDF's directions evenly, as Cycles' pattern does over its samples.
     Direct light of the Cornell box's penumbrae, mean of a still's first 16
-    frames (tests/test_restir_adaptive_direct.py test07): variance 0.036 of
+    frames (tests/core/restir/test_restir_adaptive_direct.py test07): variance 0.036 of
     16 independent frames'. Tried: sequences of different kinds side by
     side (768 points: the R2 sequence against a Sobol dimension 25 to 70 a
     cell of a 4x4 grid; a golden ratio sequence beside a Sobol pair 3 to 19

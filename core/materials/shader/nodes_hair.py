@@ -11,7 +11,7 @@ pheomelanin shares plus the tint's, or the Absorption Coefficient itself.
 The shares: R, and TRT and the later paths, come back, TT goes through,
 averaged over where light falls across the fibre (fibre_split). Hair
 scatters around its cone, not as a diffuse surface: this keeps the fibre's
-colour and energy, not its highlights (tests/test_strands.py states the
+colour and energy, not its highlights (tests/addon/export/test_strands.py states the
 tolerance).
 """
 

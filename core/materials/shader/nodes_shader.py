@@ -17,7 +17,7 @@ The Principled BSDF follows the layering of Cycles' Principled v2
   transformed cosine, our own tables); at the viewing angle every other lobe
   of the closure keeps 1 - the sheen's albedo (largest channel). Emission is
   not dimmed by it (nor by the coat). Within 0.5 % of Cycles' mean on the
-  sheen family of tests/node_families.py, block chi 2.1 at 128x128.
+  sheen family of tests/support/node_families.py, block chi 2.1 at 128x128.
 - Distribution GGX (older files, glTF imports) scatters once: the metallic
   and specular lobes lose the energy Multiscatter GGX (the default) puts
   back, as in Cycles. The Glossy BSDF's GGX, Beckmann and Ashikhmin-Shirley
@@ -27,7 +27,7 @@ The Principled BSDF follows the layering of Cycles' Principled v2
   Anisotropic) (Burley 2012's mapping, which Cycles follows); the lobe here
   is the isotropic GGX of their geometric mean, r^2 itself. Mean brightness
   agrees with Cycles (within 0.5 % on the anisotropic family of
-  tests/node_families.py), highlights are round where Cycles stretches them
+  tests/support/node_families.py), highlights are round where Cycles stretches them
   (block chi 3.8 at 64x64, 18 at 128x128 with 256 samples:
   ``bench/contact_sheet.py --only sheen anisotropic``).
 - A sheen inside a Mix Shader dims every lobe of the mixture at the viewing

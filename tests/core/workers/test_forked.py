@@ -1,0 +1,341 @@
+"""The twin process of a render loop (core/workers/forked.py, Workers.twin): both
+processes compute half of every pass and exchange the rest, so the results
+are those of one process; failures on either side end in an exception or in
+the parent computing alone, never in a lost range or a leftover process."""
+
+import os
+import time
+
+import numpy as np
+import pytest
+
+from restir_gi.core import RenderContext, RenderSettings, render_frame
+from restir_gi.core.workers import forked
+from restir_gi.core.workers.parallel import MIN_PIXELS_PER_WORKER, Workers
+from restir_gi.core.render import render_restir
+from restir_gi.core.restir import BIASED, UNBIASED, ReSTIRGI, ReSTIRSettings
+from support.scenes import cornell_box
+
+pytestmark = pytest.mark.skipif(not forked.AVAILABLE, reason="fork and memfd_create: Linux only")
+
+N = 4 * MIN_PIXELS_PER_WORKER       # two ranges
+
+
+@pytest.fixture
+def workers():
+    """Two workers (a twin process in their loops), closed after the test."""
+    w = Workers(2)
+    yield w
+    w.close()
+
+
+def gone(pid):
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return True
+    return False
+
+
+def test01_passes_are_whole_in_the_parent_and_rows_written_in_place_arrive(workers):
+    seen = np.zeros(N, np.int64)
+    with workers.twin(N) as lead:
+        assert forked.active() is not None
+        pids = np.concatenate(workers.map(lambda a, b: np.full(b - a, os.getpid()), N))
+
+        def fill(a, b):
+            seen[a:b] = np.arange(a, b) * 3
+            return np.arange(a, b)
+
+        got = workers.map_into(fill, N, written=(seen,))
+    assert lead and forked.active() is None
+    assert np.array_equal(got, np.arange(N)) and np.array_equal(seen, np.arange(N) * 3)
+    child = int(pids[-1])
+    assert pids[0] == os.getpid() and child != os.getpid()     # the second half came from the child
+    assert gone(child)
+
+
+def test02_an_exception_in_the_childs_ranges_is_raised_in_the_parent(workers):
+    def fn(a, b):
+        if a > 0:
+            raise ValueError(f"range {a} failed")
+        return b - a
+
+    with pytest.raises(ValueError, match="failed"):
+        with workers.twin(N):
+            workers.map(fn, N)
+    assert forked.active() is None
+
+
+def test03_a_child_that_dies_leaves_the_parent_to_finish_alone(workers):
+    def fn(a, b):
+        if a > 0 and forked.active() is not None and not forked.active().leader:
+            os._exit(3)      # dies without a word
+        return np.arange(a, b)
+
+    with workers.twin(N):
+        first = np.concatenate(workers.map(fn, N))
+        second = np.concatenate(workers.map(fn, N))     # alone from here on
+    assert np.array_equal(first, np.arange(N)) and np.array_equal(second, np.arange(N))
+
+
+def test03b_a_child_that_hangs_is_left_and_the_parent_finishes_alone(workers, monkeypatch):
+    """A child stuck in a pass (a lock another thread held at the fork) never
+    answers: the parent waits WAIT_SECONDS, then computes its ranges too,
+    and the child is killed."""
+    monkeypatch.setattr(forked, "WAIT_SECONDS", 1.0)
+    pids = []
+
+    def fn(a, b):
+        twin = forked.active()
+        if a > 0 and twin is not None and not twin.leader:
+            time.sleep(3600)
+        if twin is not None and twin.leader:
+            pids.append(twin.pid)
+        return np.arange(a, b)
+
+    t = time.perf_counter()
+    with workers.twin(N):
+        first = np.concatenate(workers.map(fn, N))
+        second = np.concatenate(workers.map(fn, N))
+    assert np.array_equal(first, np.arange(N)) and np.array_equal(second, np.arange(N))
+    assert 1.0 <= time.perf_counter() - t < 30.0
+    assert pids and pids[0] is not None and gone(pids[0])
+
+
+def test04_an_exception_in_the_parent_ends_the_child(workers):
+    pids = []
+
+    def fn(a, b):
+        pids.append(os.getpid())
+        return np.full(b - a, os.getpid())
+
+    with pytest.raises(KeyError):
+        with workers.twin(N):
+            child = int(np.concatenate(workers.map(fn, N))[-1])
+            raise KeyError("cancelled")
+    assert gone(child) and forked.active() is None
+
+
+def test05_nested_passes_run_whole_on_each_side(workers):
+    def inner(a, b):
+        return np.arange(a, b)
+
+    def outer(a, b):
+        return np.concatenate(workers.map(inner, 3 * MIN_PIXELS_PER_WORKER))[a % 7:a % 7 + 1]
+
+    with workers.twin(N):
+        got = workers.map(outer, N)
+    assert [int(g[0]) for g in got] == [0, (N // 2) % 7]
+
+
+def test06_no_twin_without_processes_or_for_large_images():
+    for workers, n in ((Workers(2, processes=False), N), (Workers(1), N), (Workers(2, max_range=N // 4), N)):
+        try:
+            with workers.twin(n) as lead:
+                assert lead and forked.active() is None
+        finally:
+            workers.close()
+
+
+@pytest.fixture(scope="module")
+def contexts():
+    scene = cornell_box("area", 96, 96)
+    one = RenderContext.build(scene, threads=1)
+    two = RenderContext.build(scene, threads=2)
+    assert two.workers.processes and len(two.workers.ranges(96 * 96)) == 2
+    yield one, two
+    one.close()
+    two.close()
+
+
+@pytest.mark.parametrize("mode", [BIASED, UNBIASED])
+def test07_restir_frames_of_a_twin_loop_are_those_of_one_process(contexts, mode):
+    """A still's warm-up and the frames that follow it (render_restir's loop)
+    give exactly the one-worker images, in both modes."""
+    settings = ReSTIRSettings(mode=mode, max_bounces=2, seed=9)
+    results = []
+    for ctx in contexts:
+        restir = ReSTIRGI()
+        render_restir(ctx, restir, settings, 0, 4, fresh=True)
+        results.append(render_restir(ctx, restir, settings, 1, 3))
+    a, b = results
+    assert a.history_found > 0.5
+    for field in ("color", "direct", "indirect", "M", "W", "alpha"):
+        assert np.array_equal(getattr(a, field), getattr(b, field)), field
+
+
+def test08_path_tracing_progress_and_stop_are_the_leaders():
+    """on_sample reports from the parent only, and a stop there ends the loop
+    (polled between batches: 96x96 traces 7 samples to a batch)."""
+    scene = cornell_box("area", 96, 96)
+    ctx = RenderContext.build(scene, threads=2)
+    try:
+        reports = []
+        film = render_frame(ctx, RenderSettings(samples=20, max_bounces=2, seed=1),
+                            on_sample=lambda film, s: reports.append(os.getpid()),
+                            should_stop=lambda: len(reports) >= 7)
+        assert reports == [os.getpid()] * 7 and film.count == 7
+        assert forked.active() is None
+        alone = RenderContext.build(scene, threads=1)
+        try:
+            three = render_frame(alone, RenderSettings(samples=7, max_bounces=2, seed=1))
+        finally:
+            alone.close()
+        assert np.array_equal(film.mean(), three.mean())
+    finally:
+        ctx.close()
+
+
+def test09_other_threads_of_the_process_do_not_take_part():
+    """A pass run by another thread during a twin loop (the viewport's, while
+    a final render runs) stays in this process, on threads."""
+    import threading
+    workers, other = Workers(2), Workers(2)
+    try:
+        got = {}
+        with workers.twin(N) as lead:
+            def run():
+                got["pids"] = np.concatenate(other.map(lambda a, b: np.full(b - a, os.getpid()), N))
+                got["twin"] = forked.active()
+            if lead:        # (the twin has no other threads; its copies of the pools are idle)
+                t = threading.Thread(target=run)
+                t.start()
+                t.join()
+            mine = np.concatenate(workers.map(lambda a, b: np.full(b - a, os.getpid()), N))
+        assert lead and got["twin"] is None and (got["pids"] == os.getpid()).all()
+        assert mine[-1] != os.getpid()
+    finally:
+        workers.close()
+        other.close()
+
+
+def test10_a_loop_inside_a_twin_loop_keeps_its_roles(workers):
+    with workers.twin(N) as lead:
+        with workers.twin(N) as inner:
+            roles = (lead, inner)
+            child = int(np.concatenate(workers.map(lambda a, b: np.full(b - a, os.getpid()), N))[-1])
+    assert roles == (True, True) and child != os.getpid() and gone(child)
+
+
+def test11_the_split_follows_where_the_time_goes(workers):
+    """Rows of the upper half cost more: after a few passes the parent (lower
+    half) takes more than half of the rows, and every pass is still whole."""
+    import time as _time
+
+    def fn(a, b):
+        heavy = max(0, b - max(a, N // 2))
+        _time.sleep(2e-5 * (heavy * 4 + (b - a)))
+        return np.full(b - a, os.getpid())
+
+    with workers.twin(N):
+        shares = []
+        for _ in range(6):
+            pids = np.concatenate(workers.map(fn, N))
+            assert len(pids) == N
+            shares.append(float((pids == os.getpid()).mean()))
+    assert shares[0] == 0.5 and shares[-1] > 0.6, shares
+
+
+def moving(scene, f, versions=(0, 0)):
+    """The scene seen from a camera moved along x for frame f."""
+    import copy
+    s = copy.copy(scene)
+    cam = copy.copy(scene.camera)
+    m = np.array(cam.to_world, np.float32)
+    m[0, 3] += 0.01 * f
+    cam.to_world = m
+    s.camera, s.versions = cam, versions
+    return s
+
+
+def parked_pid(ctx):
+    parked = ctx.workers._parked
+    return None if parked is None else parked[0].pid
+
+
+@pytest.mark.parametrize("mode", [BIASED, UNBIASED])
+def test12_an_animation_keeps_its_twin_while_only_the_camera_moves(contexts, mode):
+    """Frames of a moving camera (render_restir per frame, as the add-on's
+    animation renders) resume the parked twin instead of forking, and give
+    the one-worker images; a geometry edit (its change counter) forks anew."""
+    import dataclasses
+    one, two = contexts
+    settings = ReSTIRSettings(mode=mode, max_bounces=2, seed=5)
+    images, pids = {}, []
+    for base in (one, two):
+        restir = ReSTIRGI()
+        out = []
+        for f in range(6):
+            versions = (0, 0) if f < 4 else (1, 1)
+            ctx = dataclasses.replace(base, scene=moving(base.scene, f, versions))
+            out.append(render_restir(ctx, restir, settings, f, 3 if f == 0 else 1, fresh=f == 0).color.copy())
+            if base is two:
+                pids.append(parked_pid(two))
+        images[base is two] = out
+    for a, b in zip(images[False], images[True]):
+        assert np.array_equal(a, b)
+    assert None not in pids and len(set(pids[:4])) == 1 and pids[4] != pids[3] and pids[5] == pids[4]
+    assert gone(pids[0])
+    two.workers.end_twin()
+    assert gone(pids[-1]) and two.workers._parked is None
+
+
+def test13_a_stopped_loop_or_another_kind_of_loop_does_not_resume_the_twin(contexts):
+    import dataclasses
+    _, two = contexts
+    restir = ReSTIRGI()
+    settings = ReSTIRSettings(mode=BIASED, max_bounces=2, seed=5)
+    ctx = dataclasses.replace(two, scene=moving(two.scene, 0))
+    render_restir(ctx, restir, settings, 0, 2, fresh=True)
+    first = parked_pid(two)
+    calls = []
+    render_restir(ctx, restir, settings, 1, 3, should_stop=lambda: calls.append(1) or len(calls) > 1)
+    assert two.workers._parked is None and gone(first)      # stopped early: ended
+    film = render_frame(ctx, RenderSettings(samples=2, max_bounces=2, seed=1), frame=1)
+    pt = parked_pid(two)
+    film2 = render_frame(dataclasses.replace(two, scene=moving(two.scene, 1)), RenderSettings(samples=2, max_bounces=2, seed=1), frame=2)
+    assert parked_pid(two) == pt and film.count == film2.count == 2
+    render_restir(ctx, restir, settings, 2, 1)          # a ReSTIR loop after path tracing: a new twin
+    assert parked_pid(two) not in (None, pt) and gone(pt)
+    two.workers.end_twin()
+
+
+def test14_a_loop_run_by_another_thread_than_the_main_one(workers):
+    """Blender renders F12 in a job thread: the twin forks from it (signals
+    can only be set from the main thread) and the loop is whole."""
+    import threading
+    got = {}
+
+    def job():
+        with workers.twin(N) as lead:
+            pids = np.concatenate(workers.map(lambda a, b: np.full(b - a, os.getpid()), N))
+            got["ok"] = lead
+        got["pids"] = pids
+
+    t = threading.Thread(target=job)
+    t.start()
+    t.join(60)
+    assert got.get("ok") is True and got["pids"][0] == os.getpid() and got["pids"][-1] != os.getpid()
+    assert gone(int(got["pids"][-1]))
+
+
+def test15_forking_a_process_with_threads_warns_nothing(workers):
+    """Blender's process has threads; Python 3.12+ warns at every fork of such
+    a process (the child may find a lock held), which the twin provides for
+    (the parent goes on alone). The fork adds no warning to the render."""
+    import threading
+    import warnings
+    stop = threading.Event()
+    other = threading.Thread(target=stop.wait)
+    other.start()
+    try:
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            with workers.twin(N) as lead:
+                pids = np.concatenate(workers.map(lambda a, b: np.full(b - a, os.getpid()), N))
+    finally:
+        stop.set()
+        other.join()
+    assert lead and pids[-1] != os.getpid()
+    assert not [str(w.message) for w in caught if "fork" in str(w.message)]

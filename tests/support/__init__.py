@@ -1,0 +1,2 @@
+"""What tests share: scenes, Blender helpers, statistics. Tests import from
+here, never from each other."""
