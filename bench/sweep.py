@@ -9,10 +9,10 @@ A robustness sweep over files made by others (e.g. the test scenes of other
 projects' public repositories): does the engine render them at all? Each file
 is rendered as a still (the frame it was saved at) in each mode (Path Tracing,
 ReSTIR GI Biased, ReSTIR GI Unbiased), each render in a Python subprocess of
-its own that imports the ``bpy`` module, enables the extension installed from
-the built package (``make build``; installed as ``tools/render.py`` does, into
-``--user-resources``), opens the file, selects the engine and renders with
-``bpy.ops.render.render``, under a time limit. The size (resolution at 100 %)
+its own (``bench/sweep_render.py``) that imports the ``bpy`` module, enables
+the extension installed from the built package (``make build``; installed as
+``tools/render.py`` does, into ``--user-resources``), opens the file, selects
+the engine and renders with ``bpy.ops.render.render``, under a time limit. The size (resolution at 100 %)
 and the warm-up frames are set on every file; everything else is the file's.
 
 Per file and mode the result is one of
@@ -64,18 +64,16 @@ import tempfile
 import threading
 import time
 
-REPO_ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
-TOOLS = os.path.join(REPO_ROOT, "tools")
+HERE = os.path.dirname(os.path.abspath(__file__))
+sys.path.insert(0, HERE)
+from sweep_report import MODE_TITLES, STATUSES, display_command, write_report  # noqa: E402
+
+REPO_ROOT = os.path.dirname(HERE)
+# One render, in a subprocess of its own (imports bpy).
+RENDER = os.path.join(HERE, "sweep_render.py")
 
 MODES = {"path": "PATH", "biased": "RESTIR_BIASED", "unbiased": "RESTIR_UNBIASED"}
-MODE_TITLES = {"PATH": "Path Tracing", "RESTIR_BIASED": "ReSTIR Biased",
-               "RESTIR_UNBIASED": "ReSTIR Unbiased"}
-STATUSES = ("rendered", "failed", "crashed", "timeout", "nan")
 
-
-# --------------------------------------------------------------------------
-# The sweep (no bpy here)
-# --------------------------------------------------------------------------
 
 def parse_size(text: str) -> tuple[int, int]:
     m = re.fullmatch(r"\s*(\d+)\s*(?:[xX]\s*(\d+)\s*)?", text)
@@ -142,21 +140,19 @@ def parse_args(argv: list[str] | None) -> argparse.Namespace:
     parser.add_argument("--user-resources", default=os.path.join(REPO_ROOT, ".blender_user"),
                         metavar="DIR", help="Blender user folder the package is installed into "
                                             "(default: .blender_user in the repository)")
-    parser.add_argument("--worker", default=None, help=argparse.SUPPRESS)
     args = parser.parse_args(argv)
-    if args.worker is None:
-        if args.warmup < 1:
-            parser.error("--warmup must be at least 1")
-        if args.samples is not None and args.samples < 1:
-            parser.error("--samples must be at least 1")
-        if args.jobs < 1:
-            parser.error("--jobs must be at least 1")
-        if args.timeout <= 0:
-            parser.error("--timeout must be positive")
-        if args.folder is None:
-            parser.error("the folder DIR is required")
-        if not os.path.isdir(args.folder):
-            parser.error("not a folder: {}".format(args.folder))
+    if args.warmup < 1:
+        parser.error("--warmup must be at least 1")
+    if args.samples is not None and args.samples < 1:
+        parser.error("--samples must be at least 1")
+    if args.jobs < 1:
+        parser.error("--jobs must be at least 1")
+    if args.timeout <= 0:
+        parser.error("--timeout must be positive")
+    if args.folder is None:
+        parser.error("the folder DIR is required")
+    if not os.path.isdir(args.folder):
+        parser.error("not a folder: {}".format(args.folder))
     return args
 
 
@@ -221,8 +217,7 @@ def run_one(args: argparse.Namespace, zip_path: str, rel: str, mode: str, tmp: s
     with open(log_path, "w+", errors="replace") as log:
         # A session of its own: a render that runs over its time is killed
         # with everything it started.
-        proc = subprocess.Popen([sys.executable, os.path.abspath(__file__),
-                                 "--worker", json.dumps(spec)],
+        proc = subprocess.Popen([sys.executable, RENDER, json.dumps(spec)],
                                 stdout=log, stderr=subprocess.STDOUT, cwd=tmp,
                                 start_new_session=True)
         try:
@@ -268,96 +263,16 @@ def install(args: argparse.Namespace, zip_path: str, tmp: str) -> None:
     """Install (or enable) the package once before the renders start."""
     spec = {"install_only": True, "package": zip_path,
             "user_resources": os.path.abspath(args.user_resources)}
-    proc = subprocess.run([sys.executable, os.path.abspath(__file__), "--worker", json.dumps(spec)],
+    proc = subprocess.run([sys.executable, RENDER, json.dumps(spec)],
                           stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, cwd=tmp,
                           timeout=600)
     if proc.returncode != 0:
         sys.exit("[sweep] error: installing the extension failed:\n" + proc.stdout)
 
 
-def cell(entry: dict | None) -> str:
-    if entry is None:
-        return "-"
-    status = entry["status"]
-    if status == "rendered":
-        return "{:.1f} s".format(entry["seconds"])
-    if status == "nan":
-        return "**NaN** {} px, {:.1f} s".format(entry["bad_pixels"], entry["seconds"])
-    return "**{}**".format(status)
-
-
-def write_report(path: str, args: argparse.Namespace, files: list[str], skipped: list[str],
-                 results: dict, command: str) -> None:
-    modes = args.modes
-    lines = ["# Sweep: {} files, {}".format(len(files), ", ".join(MODE_TITLES[m] for m in modes)), ""]
-    lines += ["```sh", command, "```", ""]
-    lines += ["{}, {} warm-up frames (ReSTIR), {} samples (Path Tracing), {} s limit per "
-              "render{}.".format("{}x{}".format(*args.size), args.warmup,
-                                 args.samples if args.samples else "the file's",
-                                 "{:g}".format(args.timeout),
-                                 ", camera framing all visible objects" if args.camera else ""), ""]
-    lines += ["| mode | files | " + " | ".join(STATUSES) + " | median time |",
-              "|---|---:|" + "---:|" * len(STATUSES) + "---:|"]
-    for mode in modes:
-        done = [results[(f, mode)] for f in files if (f, mode) in results]
-        counts = [sum(e["status"] == s for e in done) for s in STATUSES]
-        times = sorted(e["seconds"] for e in done if e.get("seconds") is not None)
-        median = "{:.1f} s".format(times[len(times) // 2]) if times else "-"
-        lines.append("| {} | {} | {} | {} |".format(MODE_TITLES[mode], len(done),
-                                                    " | ".join(map(str, counts)), median))
-    lines += ["", "Times are the render alone (Blender's start-up and the file's loading "
-                  "not counted).", ""]
-    problems = [results[(f, m)] for f in files for m in modes
-                if (f, m) in results and results[(f, m)]["status"] != "rendered"]
-    if problems:
-        lines += ["## Problems", "", "| file | mode | result | error |", "|---|---|---|---|"]
-        for e in problems:
-            error = e.get("error", "")
-            if e.get("where"):
-                error += " (at {})".format(e["where"])
-            if e["status"] == "nan":
-                error = "{} NaN, {} Inf pixels (passes: {})".format(
-                    e.get("nan_pixels", 0), e.get("inf_pixels", 0),
-                    ", ".join(sorted(e.get("bad_passes", {}))))
-            lines.append("| {} | {} | {} | {} |".format(
-                e["file"], MODE_TITLES[e["mode"]], e["status"], error.replace("|", "\\|")))
-        lines.append("")
-    lines += ["## Files", "", "| file | " + " | ".join(MODE_TITLES[m] for m in modes) + " |",
-              "|---|" + "---:|" * len(modes)]
-    for f in files:
-        lines.append("| {} | {} |".format(f.replace(os.sep, "/"),
-                                          " | ".join(cell(results.get((f, m))) for m in modes)))
-    if skipped:
-        lines += ["", "Skipped (not .blend files, e.g. Git LFS pointers): "
-                  + ", ".join(s.replace(os.sep, "/") for s in skipped) + "."]
-    with open(path, "w") as fh:
-        fh.write("\n".join(lines) + "\n")
-
-
-def display_command(argv: list[str], args: argparse.Namespace) -> str:
-    """The command line as given, with the folder written DIR and other
-    absolute paths by their role, so the report names no path of this machine."""
-    placeholders = {"--logs": "LOGDIR", "--images": "IMGDIR", "--package": "ZIP", "--user-resources": "USERDIR",
-                    "--output": "OUTPUT"}
-    words, previous = ["python bench/sweep.py"], None
-    for arg in argv:
-        if arg == args.folder:
-            arg = "DIR"
-        elif previous in placeholders and os.path.isabs(arg):
-            arg = placeholders[previous]
-        elif "=" in arg and arg.split("=", 1)[0] in placeholders and os.path.isabs(arg.split("=", 1)[1]):
-            arg = "{}={}".format(arg.split("=", 1)[0], placeholders[arg.split("=", 1)[0]])
-        words.append(arg if re.fullmatch(r"[\w.,:=/+-]+", arg) else repr(arg))
-        previous = arg
-    return " ".join(words)
-
-
 def main(argv: list[str] | None = None) -> int:
     argv = sys.argv[1:] if argv is None else argv
     args = parse_args(argv)
-    if args.worker is not None:
-        return worker(json.loads(args.worker))
-
     zip_path = package_path(args)
     if not os.path.isfile(zip_path):
         sys.exit("[sweep] error: extension package not found: {} (build it with `make build`)"
@@ -433,203 +348,6 @@ def main(argv: list[str] | None = None) -> int:
             "{} {}".format(n, s) for s, n in counts.items())))
     print("[sweep] wrote {} and {}".format(md_path, json_path))
     return 1 if bad else 0
-
-
-# --------------------------------------------------------------------------
-# One render (in its own subprocess, imports bpy)
-# --------------------------------------------------------------------------
-
-GEOMETRY_TYPES = {"MESH", "CURVE", "SURFACE", "META", "FONT", "CURVES", "POINTCLOUD", "VOLUME"}
-# Blender's default camera: looking down from the front right.
-DEFAULT_CAMERA_ROTATION = (1.1093, 0.0, 0.8149)
-
-
-def visible_corners(bpy, depsgraph):
-    """World-space corners of the bounding boxes of all visible geometry (N, 3)."""
-    import numpy as np
-    corners = []
-    for inst in depsgraph.object_instances:
-        ob = inst.object
-        if ob.type not in GEOMETRY_TYPES or ob.original.hide_render:
-            continue
-        box = np.array([tuple(c) for c in ob.bound_box], float)
-        m = np.array(inst.matrix_world, float)
-        corners.append(box @ m[:3, :3].T + m[:3, 3])
-    if not corners:
-        return np.zeros((0, 3))
-    pts = np.concatenate(corners)
-    return pts[np.isfinite(pts).all(axis=1)]
-
-
-def frame_camera(bpy, scene) -> str:
-    """Make the scene camera frame every visible object; what was done, in words."""
-    import numpy as np
-    from mathutils import Euler, Vector
-    depsgraph = bpy.context.evaluated_depsgraph_get()
-    pts = visible_corners(bpy, depsgraph)
-    cam = scene.camera
-    if cam is None or cam.type != 'CAMERA':
-        data = bpy.data.cameras.new("SweepCamera")
-        cam = bpy.data.objects.new("SweepCamera", data)
-        scene.collection.objects.link(cam)
-        cam.rotation_euler = Euler(DEFAULT_CAMERA_ROTATION)
-        cam.location = (7.36, -6.93, 4.96)
-        scene.camera = cam
-        what = "added a camera"
-    else:
-        # Keep where it looks, drop what would move it at render time.
-        world = cam.matrix_world.copy()
-        cam.parent = None
-        cam.constraints.clear()
-        cam.animation_data_clear()
-        cam.data.animation_data_clear()
-        cam.matrix_world = world
-        what = "moved the scene camera"
-    if len(pts) == 0:
-        return what + " (no visible geometry to frame)"
-    bpy.context.view_layer.update()
-    depsgraph = bpy.context.evaluated_depsgraph_get()
-    location, scale = cam.camera_fit_coords(depsgraph, [float(x) for x in pts.ravel()])
-    cam.location = location
-    if cam.data.type == 'ORTHO':
-        cam.data.ortho_scale = scale
-    bpy.context.view_layer.update()
-    forward = -np.array(cam.matrix_world.to_3x3().col[2], float)
-    depth = (pts - np.array(cam.matrix_world.translation, float)) @ forward
-    near, far = float(depth.min()), float(depth.max())
-    size = float(np.linalg.norm(pts.max(axis=0) - pts.min(axis=0))) or 1.0
-    cam.data.clip_end = max(cam.data.clip_end, 1.5 * far + 0.1 * size)
-    cam.data.clip_start = min(cam.data.clip_start, max(0.5 * near, 1e-4 * size, 1e-5))
-    return what
-
-
-def non_finite(path: str) -> tuple[int, int, int, dict]:
-    """Pixels of a multilayer EXR with NaN, with Inf and with either in any
-    pass, and the passes that hold them ({pass: pixels})."""
-    import numpy as np
-    import OpenEXR
-    shape, nan, inf, per_pass = None, None, None, {}    # per pixel of the first part
-    with OpenEXR.File(path, separate_channels=True) as exr:
-        for part in exr.parts:
-            for name, channel in part.channels.items():
-                values = np.asarray(channel.pixels, np.float32)
-                if nan is None:
-                    shape = values.shape
-                    nan, inf = np.zeros(shape, bool), np.zeros(shape, bool)
-                if values.shape == shape:
-                    nan |= np.isnan(values)
-                    inf |= np.isinf(values)
-                count = int((~np.isfinite(values)).sum())
-                if count:
-                    layer_pass = name.rsplit(".", 1)[0]
-                    per_pass[layer_pass] = max(per_pass.get(layer_pass, 0), count)
-    if nan is None:
-        return 0, 0, 0, {}
-    return int(nan.sum()), int(inf.sum()), int((nan | inf).sum()), per_pass
-
-
-def worker(spec: dict) -> int:
-    """Render spec['blend'] in spec['mode']; write the outcome to spec['result']."""
-    sys.path.insert(0, TOOLS)
-    import render as render_tool  # tools/render.py: the installation as `make render` does it
-
-    user_resources = spec["user_resources"]
-    os.environ["BLENDER_USER_RESOURCES"] = user_resources
-    site_packages = render_tool.extension_site_packages(user_resources)
-    os.makedirs(site_packages, exist_ok=True)
-    sys.path.insert(0, site_packages)
-    import bpy
-    with render_tool.install_lock(user_resources):
-        pkg_id = render_tool.extension_id_and_zip()[0]
-        render_tool.install_or_enable(bpy, pkg_id, spec["package"], user_resources)
-    if spec.get("install_only"):
-        return 0
-
-    def finish(outcome: dict) -> None:
-        with open(spec["result"] + ".tmp", "w") as fh:
-            json.dump(outcome, fh)
-        os.replace(spec["result"] + ".tmp", spec["result"])
-
-    try:
-        bpy.ops.wm.open_mainfile(filepath=spec["blend"], load_ui=False)
-    except RuntimeError as exc:
-        # Errors while reading (e.g. sequencer strips Blender drops) raise
-        # here although the file was opened; `blender -b` carries on too.
-        if os.path.normcase(os.path.abspath(bpy.data.filepath)) != os.path.normcase(spec["blend"]):
-            finish({"status": "failed", "error": "could not open the file: {}".format(
-                str(exc).strip().splitlines()[0])})
-            return 1
-        print("[sweep] opened with errors: {}".format(exc), flush=True)
-    scene = bpy.context.scene
-    render = scene.render
-    render.engine = render_tool.ENGINE_ID
-    render.resolution_x, render.resolution_y = spec["size"]
-    render.resolution_percentage = 100
-    settings = scene.restir_gi
-    settings.mode = spec["mode"]
-    settings.warmup_frames = spec["warmup"]
-    if spec["samples"]:
-        settings.samples = spec["samples"]
-    if spec["threads"]:
-        render.threads_mode = 'FIXED'
-        render.threads = spec["threads"]
-    camera = frame_camera(bpy, scene) if spec["camera"] else None
-    if camera:
-        print("[sweep] " + camera, flush=True)
-
-    t0 = [time.perf_counter()]
-
-    # A Python exception escaping the engine is printed by Blender, which
-    # carries on with an empty image: count it as a failure and stop.
-    default_hook = sys.excepthook
-
-    def excepthook(exc_type, exc, tb):
-        default_hook(exc_type, exc, tb)
-        finish({"status": "failed", "error": "{}: {}".format(exc_type.__name__, exc).splitlines()[0],
-                "seconds": round(time.perf_counter() - t0[0], 2)})
-        sys.stdout.flush()
-        sys.stderr.flush()
-        os._exit(1)
-
-    sys.excepthook = excepthook
-    t0[0] = time.perf_counter()
-    try:
-        bpy.ops.render.render(write_still=False)
-    except RuntimeError as exc:
-        # Blender joins the engine's ERROR reports into the message: "Error: ...".
-        lines = [ln.strip() for ln in str(exc).splitlines() if ln.strip()]
-        first = re.sub(r"^Error:\s*", "", lines[0]) if lines else "render failed"
-        finish({"status": "failed", "error": first,
-                "seconds": round(time.perf_counter() - t0[0], 2)})
-        return 1
-    finally:
-        sys.excepthook = default_hook
-    seconds = round(time.perf_counter() - t0[0], 2)
-
-    # Every pass of the result, as a 32-bit float multilayer EXR, read back
-    # for NaN and Inf.
-    image_settings = render.image_settings
-    if hasattr(image_settings, "media_type"):       # Blender 5.0 and newer
-        image_settings.media_type = 'MULTI_LAYER_IMAGE'
-    image_settings.file_format = 'OPEN_EXR_MULTILAYER'
-    image_settings.color_depth = '32'
-    result_image = bpy.data.images['Render Result']
-    result_image.save_render(spec["image"], scene=scene)
-    if spec["png"]:
-        if hasattr(image_settings, "media_type"):
-            image_settings.media_type = 'IMAGE'
-        image_settings.file_format = 'PNG'
-        image_settings.color_depth = '8'
-        result_image.save_render(spec["png"], scene=scene)
-    nan, inf, bad, bad_passes = non_finite(spec["image"])
-    outcome = {"status": "nan" if bad else "rendered", "seconds": seconds,
-               "nan_pixels": nan, "inf_pixels": inf, "bad_pixels": bad}
-    if bad_passes:
-        outcome["bad_passes"] = bad_passes
-    if camera:
-        outcome["camera"] = camera
-    finish(outcome)
-    return 0
 
 
 if __name__ == "__main__":

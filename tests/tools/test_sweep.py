@@ -13,6 +13,7 @@ import pytest
 
 REPO_ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), "..", ".."))
 SWEEP = os.path.join(REPO_ROOT, "bench", "sweep.py")
+SWEEP_RENDER = os.path.join(REPO_ROOT, "bench", "sweep_render.py")
 
 
 def run(cmd, cwd, env=None, timeout=600):
@@ -98,9 +99,9 @@ def test_non_finite_pixels_counted_per_pass(tmp_path):
 
     import numpy as np
     import OpenEXR
-    spec = importlib.util.spec_from_file_location("sweep", SWEEP)
-    sweep_tool = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(sweep_tool)
+    spec = importlib.util.spec_from_file_location("sweep_render", SWEEP_RENDER)
+    render_tool = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(render_tool)
 
     combined = np.ones((3, 4), np.float32)
     depth = np.full((3, 4), 1e10, np.float32)
@@ -112,4 +113,4 @@ def test_non_finite_pixels_counted_per_pass(tmp_path):
     path = str(tmp_path / "passes.exr")
     OpenEXR.File({"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage},
                  channels).write(path)
-    assert sweep_tool.non_finite(path) == (1, 2, 2, {"View Layer.Combined": 1, "View Layer.Depth": 2})
+    assert render_tool.non_finite(path) == (1, 2, 2, {"View Layer.Combined": 1, "View Layer.Depth": 2})
