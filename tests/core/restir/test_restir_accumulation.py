@@ -293,7 +293,7 @@ def test13_edges_keep_their_coverage_on_a_moving_view(monkeypatch):
     history from every tap: an edge pixel keeps the mix of the surfaces it
     covers instead of flipping to whichever side this frame's ray hit, so
     its direct light changes less from frame to frame."""
-    import restir_gi.core.restir as restir_module
+    import restir_gi.core.restir.frame as restir_module
     from restir_gi.core.restir.accumulation import geometric_edges
 
     def run():
