@@ -11,6 +11,8 @@ pairwise MIS weights (``_pairwise_weights``) with visibility in the targets,
 and W = w_sum / p_hat.
 """
 
+from typing import NamedTuple
+
 import numpy as np
 
 from ..sampling import samplers
@@ -22,6 +24,18 @@ from .shift import shift_target, shift_weight, shift_weight_of, target_at
 from .temporal import DEPTH_REL_MAX, NORMAL_COS_MIN
 
 D_SPATIAL = 1000            # first sampler dimension of the spatial pass
+
+
+class Candidate(NamedTuple):
+    """One reservoir a pixel may take its sample from, for every pixel of a range."""
+    source: object          # the Reservoirs it comes from (temporal, or last frame's spatial)
+    rows: np.ndarray        # (n,) its row in source per pixel (None: the range's own rows)
+    weight: np.ndarray      # (n,) resampling weight (None until pairwise MIS sets it)
+    M: np.ndarray           # (n,) confidence it brings (0 where not reused)
+    owner_p: np.ndarray     # (n, 3) the visible point that found it
+    ng: np.ndarray          # (n, 3) that point's geometric normal (None where not needed)
+    ns: np.ndarray          # (n, 3) that point's shading normal
+    shifted_from: np.ndarray  # (n, 3) the point its sample is shifted from (None: this pixel's own)
 
 
 def sample_luminance(temporal):
@@ -64,21 +78,20 @@ def spatial_resample(ctx, gb, temporal, prev_spatial, prev_owner_p, seeds, k, ra
     own = temporal.rows(a, b)
     pix = np.arange(a, b)
     # Candidates: this pixel's temporal reservoir, its reprojected spatial
-    # reservoir of last frame, and k neighbours' temporal reservoirs. Each is
-    # (source reservoirs, source row per pixel, weight, M, owner x1, ng, ns,
-    # shifted from); one is chosen per pixel at the end (reservoirs.choose).
+    # reservoir of last frame, and k neighbours' temporal reservoirs; one is
+    # chosen per pixel at the end (reservoirs.choose).
     candidates = []
     m_own = np.where(valid, own.M, 0.0).astype(np.float32)
     # p_hat W M of the own reservoir (finalised at this very point): its
     # w_sum, over M (biased, W = w_sum / (M p_hat)) or not (unbiased: the
     # temporal pass weighs by the balance heuristic, W = w_sum / p_hat).
     own_w = np.where(own.W > 0, own.w_sum * (1.0 if biased else m_own), 0.0).astype(np.float32)
-    candidates.append((temporal, pix, own_w, m_own, p, ng, nrm, None))
+    candidates.append(Candidate(temporal, pix, own_w, m_own, p, ng, nrm, None))
 
     if prev_spatial is not None:
         pw = shift_weight(prev_spatial, prev_owner_p, p, ng, nrm, biased)
         pm = np.where(valid, prev_spatial.M, 0.0).astype(np.float32)
-        candidates.append((prev_spatial, None, pw, pm, p, ng, nrm, prev_owner_p))
+        candidates.append(Candidate(prev_spatial, None, pw, pm, p, ng, nrm, prev_owner_p))
 
     px, py = (pix % w).astype(np.float32), (pix // w).astype(np.float32)
     # Neighbours' reservoirs enter through their sample point, its normal and
@@ -106,20 +119,21 @@ def spatial_resample(ctx, gb, temporal, prev_spatial, prev_owner_p, seeds, k, ra
             weight *= ok
         else:
             weight = None       # pairwise MIS weights, below, once every neighbour is known
-        candidates.append((temporal, nb, weight, m, p_nb, None if biased else gather(ng_all, nb), nrm_nb, p_nb))
+        candidates.append(Candidate(temporal, nb, weight, m, p_nb, None if biased else gather(ng_all, nb),
+                                    nrm_nb, p_nb))
     if not biased:
         targets = _pairwise_weights(ctx, temporal, shared, own, candidates, p, ng, nrm)
 
-    choice, w_sum = choose([c[2] for c in candidates], samplers.uniform(seeds, D_SPATIAL))
+    choice, w_sum = choose([c.weight for c in candidates], samplers.uniform(seeds, D_SPATIAL))
     # The winners' samples: one gather from the temporal reservoirs (own row or
     # a neighbour's), then the rows won by last frame's spatial reservoir.
     n = b - a
     src_row = pix.copy()
     from_prev = np.zeros(n, bool)
-    for c, (src, src_rows, *_rest) in enumerate(candidates):
+    for c, cand in enumerate(candidates):
         won = choice == c
-        if src is temporal:
-            src_row = np.where(won, src_rows, src_row)
+        if cand.source is temporal:
+            src_row = np.where(won, cand.rows, src_row)
         else:
             from_prev |= won
     res = Reservoirs.empty(n)
@@ -133,7 +147,7 @@ def spatial_resample(ctx, gb, temporal, prev_spatial, prev_owner_p, seeds, k, ra
     res.prim2[nothing] = Reservoirs.NO_SAMPLE
     res.lo[nothing] = 0
     res.w_sum[:] = w_sum
-    res.M[:] = sum(c[3] for c in candidates)
+    res.M[:] = sum(c.M for c in candidates)
 
     own_visible = None
     if biased:
@@ -154,7 +168,8 @@ def spatial_resample(ctx, gb, temporal, prev_spatial, prev_owner_p, seeds, k, ra
 
 def _pairwise_weights(ctx, temporal, lum, own, candidates, p, ng, nrm):
     """Unbiased resampling weights of the own (canonical) reservoir and the
-    k neighbours' (candidates[0] and candidates[1:], weights set in place) by
+    k neighbours' (candidates[0] and candidates[1:], Candidates replaced in
+    the list with their weights set) by
     pairwise MIS (Bitterli 2022, ch. 9.1.3, with confidence weights M); lum:
     sample_luminance(temporal). Returns each candidate's target at the
     receiver, visibility included.
@@ -177,8 +192,8 @@ def _pairwise_weights(ctx, temporal, lum, own, candidates, p, ng, nrm):
     of the canonical sample from the neighbours and every sample from the
     receiver (whose visibility of the chosen sample shading then knows)."""
     k = len(candidates) - 1
-    m_c = candidates[0][3]
-    m_tot = m_c + sum(c[3] for c in candidates[1:])
+    m_c = candidates[0].M
+    m_tot = m_c + sum(c.M for c in candidates[1:])
     share = m_c / np.float32(max(k, 1))
     lum_c = np.where(own.has_sample, target(own.lo), 0.0).astype(np.float32)
     pc_c = target_at(own, p, ng, nrm)
@@ -187,7 +202,8 @@ def _pairwise_weights(ctx, temporal, lum, own, candidates, p, ng, nrm):
     rays.add(p, ng, own.x2, pc_c > 0)
     terms = []
     with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
-        for _src, nb, _w, m_i, p_nb, ng_nb, ns_nb, _from in candidates[1:]:
+        for cand in candidates[1:]:
+            nb, m_i, p_nb, ng_nb, ns_nb = cand.rows, cand.M, cand.owner_p, cand.ng, cand.ns
             x2_i, lum_i = temporal.field("x2", nb), np.take(lum, nb)
             # The neighbour's sample here (J: its shift from there to here) ...
             pc_i, j_ic = shift_target(x2_i, temporal.field("ng2", nb), lum_i, p_nb, p, ng, nrm)
@@ -213,12 +229,11 @@ def _pairwise_weights(ctx, temporal, lum, own, candidates, p, ng, nrm):
             targets.append(pc_i)
             c_i = share * pc_i
             m_mis = np.where(c_i > 0, s_i * n_i / (n_i + c_i), 0.0)
-            candidates[i] = candidates[i][:2] + ((m_mis * pc_i * w_i * j_ic).astype(np.float32),) \
-                + candidates[i][3:]
+            candidates[i] = candidates[i]._replace(weight=(m_mis * pc_i * w_i * j_ic).astype(np.float32))
             pi_c = np.where(seen[2 * i], pi_c, 0.0)
             own_mis += np.where(c_c > 0, s_i * c_c / (c_c + m_i * pi_c), 0.0).astype(np.float32)
         own_w = np.where(own.W > 0, own_mis * pc_c * own.W, 0.0)
-    candidates[0] = candidates[0][:2] + (own_w.astype(np.float32),) + candidates[0][3:]
+    candidates[0] = candidates[0]._replace(weight=own_w.astype(np.float32))
     return targets
 
 
