@@ -70,17 +70,17 @@ def test_holdout_in_a_mirror_as_cycles(addon, how):
 
     import OpenEXR
     from support.blender_util import open_example, set_resolution, setup_cycles, setup_restir
-    from support.node_families import _assign, _new_material, _principled
+    from support.cornell_box import assign, new_material, principled
     import bpy
     scene = open_example("cornell_box.blend")
     set_resolution(scene, 48, 48)
-    _assign(["Floor"], _principled("Mirror", **{"Base Color": (0.9, 0.9, 0.9, 1), "Metallic": 1.0,
-                                                 "Roughness": 0.02}))
+    assign(["Floor"], principled("Mirror", **{"Base Color": (0.9, 0.9, 0.9, 1), "Metallic": 1.0,
+                                               "Roughness": 0.02}))
     box = bpy.data.objects["ShortBox"]
     if how == "material":
-        mat, tree, out = _new_material("Hold")
+        mat, tree, out = new_material("Hold")
         tree.links.new(tree.nodes.new("ShaderNodeHoldout").outputs[0], out.inputs["Surface"])
-        _assign(["ShortBox"], mat)
+        assign(["ShortBox"], mat)
     elif how == "object":
         box.is_holdout = True
     else:

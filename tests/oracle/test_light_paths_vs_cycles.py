@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from support.blender_util import block_means, open_example, render_image, set_resolution, setup_cycles
-from support.node_families import _principled, _spheres
+from support.cornell_box import assign, new_material, principled, spheres
 
 SIZE = 64
 BLOCK = 8
@@ -19,10 +19,10 @@ CLAMP = 1.0
 
 def _mirror_and_glass():
     """The Cornell box with a mirror-like sphere and a glass sphere for boxes."""
-    _spheres([(0.4, (-0.4, 0.3), _principled("Mirror", **{
-                  "Base Color": (0.9, 0.9, 0.9, 1), "Metallic": 1.0, "Roughness": 0.15})),
-              (0.35, (0.45, -0.3), _principled("Glass", **{
-                  "Roughness": 0.05, "Transmission Weight": 1.0, "IOR": 1.45}))])
+    spheres([(0.4, (-0.4, 0.3), principled("Mirror", **{
+                 "Base Color": (0.9, 0.9, 0.9, 1), "Metallic": 1.0, "Roughness": 0.15})),
+             (0.35, (0.45, -0.3), principled("Glass", **{
+                 "Roughness": 0.05, "Transmission Weight": 1.0, "IOR": 1.45}))])
 
 
 def _limits(total, diffuse, glossy, transmission):
@@ -85,17 +85,16 @@ def test_ray_visibility_per_kind_matches_cycles(addon):
     light does not reach the walls (light sampling leaves them out of the
     diffuse lobes too, as Cycles does)."""
     import bpy
-    from support.node_families import _assign
     scene = open_example("cornell_box.blend")
     set_resolution(scene, SIZE, SIZE)
-    _spheres([(0.35, (-0.4, -0.2), _principled("Mirror", **{
-                  "Base Color": (0.9, 0.9, 0.9, 1), "Metallic": 1.0, "Roughness": 0.1})),
-              (0.35, (0.4, -0.2), _principled("Glass", **{
-                  "Roughness": 0.05, "Transmission Weight": 1.0, "IOR": 1.45}))])
-    _assign(["Floor"], _principled("Polished", **{
+    spheres([(0.35, (-0.4, -0.2), principled("Mirror", **{
+                 "Base Color": (0.9, 0.9, 0.9, 1), "Metallic": 1.0, "Roughness": 0.1})),
+             (0.35, (0.4, -0.2), principled("Glass", **{
+                 "Roughness": 0.05, "Transmission Weight": 1.0, "IOR": 1.45}))])
+    assign(["Floor"], principled("Polished", **{
         "Base Color": (0.8, 0.8, 0.8, 1), "Metallic": 1.0, "Roughness": 0.15}))
-    glow = _principled("Glow", **{"Base Color": (0.8, 0.1, 0.1, 1), "Emission Color": (1.0, 0.2, 0.1, 1),
-                                  "Emission Strength": 3.0})
+    glow = principled("Glow", **{"Base Color": (0.8, 0.1, 0.1, 1), "Emission Color": (1.0, 0.2, 0.1, 1),
+                                 "Emission Strength": 3.0})
     cubes = []
     for size, location in ((0.3, (0.0, -1.1, 0.152)), (0.4, (0.4, 0.6, 0.202))):
         bpy.ops.mesh.primitive_cube_add(size=size, location=location)
@@ -125,12 +124,11 @@ def test_lamp_hidden_by_kind_matches_cycles(addon):
     from glossy rays (no highlight of it, no reflection), then from diffuse
     rays (it lights only the glossy lobes)."""
     import bpy
-    from support.node_families import _assign
     scene = open_example("cornell_box.blend")
     set_resolution(scene, SIZE, SIZE)
-    _spheres([(0.35, (-0.4, -0.2), _principled("Mirror", **{
-                  "Base Color": (0.9, 0.9, 0.9, 1), "Metallic": 1.0, "Roughness": 0.2}))])
-    _assign(["Floor"], _principled("Satin", **{"Base Color": (0.6, 0.6, 0.6, 1), "Roughness": 0.25}))
+    spheres([(0.35, (-0.4, -0.2), principled("Mirror", **{
+                 "Base Color": (0.9, 0.9, 0.9, 1), "Metallic": 1.0, "Roughness": 0.2}))])
+    assign(["Floor"], principled("Satin", **{"Base Color": (0.6, 0.6, 0.6, 1), "Roughness": 0.25}))
     lamp = bpy.data.lights.new("Lamp", "AREA")
     lamp.energy, lamp.size = 40.0, 0.4
     obj = bpy.data.objects.new("Lamp", lamp)
@@ -191,9 +189,8 @@ def test_glass_transparent_to_shadow_rays_matches_cycles(addon):
     """The usual glass trick: Mix Shader of Glass and Transparent by Light
     Path > Is Shadow Ray. Shadow rays pass the glass sphere (its shadow is
     light), other rays see glass, as Cycles renders it."""
-    from support.node_families import _new_material
     scene, ours, cycles, baseline = _spheres_and_baseline()
-    mat, tree, out = _new_material("ShadowlessGlass")
+    mat, tree, out = new_material("ShadowlessGlass")
     glass, clear = tree.nodes.new("ShaderNodeBsdfGlass"), tree.nodes.new("ShaderNodeBsdfTransparent")
     glass.inputs["Roughness"].default_value, glass.inputs["IOR"].default_value = 0.05, 1.45
     mix, path = tree.nodes.new("ShaderNodeMixShader"), tree.nodes.new("ShaderNodeLightPath")
