@@ -34,7 +34,7 @@ from ..core.integrators.media import media_of
 from ..core.object_motion import ShutterMotion
 from ..core.render import render_restir
 from ..core.restir import ReSTIRSettings
-from . import memory, state
+from . import defaults, memory, state
 from .export.camera import render_region
 from .memory import SceneTooLarge
 from .render_camera import moving_camera, view_camera, view_names
@@ -76,7 +76,7 @@ def restir_settings(scene):
         spatial_neighbors=s.spatial_neighbors, spatial_radius=float(s.spatial_radius),
         validation_interval=s.validation_interval, validate_on_change=True, light_samples=s.light_samples,
         sky_samples=s.sky_samples, boiling_filter=float(s.boiling_filter),
-        denoise=bool(getattr(s, "use_denoising", False)))
+        denoise=bool(getattr(s, "use_denoising", defaults.DENOISE)))
 
 
 def denoising_normal(normal, camera):

@@ -28,8 +28,7 @@ from ..camera.projection import generate_rays, project
 from ..util.rows import gather
 from ..util.vectors import luminance
 from .adaptive_direct import neighbourhood_range
-
-DEPTH_REL_MAX = 0.1
+from .similarity import DEPTH_REL_MAX
 STILL = 1 << 30             # cap for a still image: the plain mean of every frame
 
 

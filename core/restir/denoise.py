@@ -126,7 +126,8 @@ def denoise(workers, data, depth, valid, width, height, iterations=ITERATIONS, t
     red, green, blue, lum, nx, ny, nz, z, m1, m2, count = workers.map_into(run(prepare), n)
     nimg = np.stack([nx, ny, nz]).reshape(3, *shape)
     zimg = z.reshape(shape)
-    m1, m2, count = m1.reshape(shape), m2.reshape(shape), count.reshape(shape)
+    moments = [m1.reshape(shape), m2.reshape(shape), count.reshape(shape)]
+    del m1, m2, count
 
     # 2. Depth gradient, variance, and the luminance the first iteration
     # compares (neighbouring rows: 3x3 and 7x7 windows).
@@ -135,11 +136,11 @@ def denoise(workers, data, depth, valid, width, height, iterations=ITERATIONS, t
         lo, hi = a - r0 * width, b - r0 * width
         grad_x, grad_y = depth_gradient(zimg, nimg, r0, r1)
         guide = surface_blur(lum.reshape(shape), zimg, nimg, grad_x, grad_y, r0, r1)
-        return (variance(m1, m2, count, zimg, nimg, grad_x, grad_y, r0, r1)[lo:hi],
+        return (variance(*moments, zimg, nimg, grad_x, grad_y, r0, r1)[lo:hi],
                 grad_x.ravel()[lo:hi], grad_y.ravel()[lo:hi], guide.ravel()[lo:hi])
 
     var, gx, gy, guide = workers.map_into(run(spread), n)
-    del m1, m2, count
+    moments.clear()     # (freed before the iterations)
     img = Image(red, green, blue, lum, var, guide)
     gimg = (gx.reshape(shape), gy.reshape(shape))
 

@@ -200,8 +200,8 @@ def reuse_glossy(ctx, img, gs, start, stop, offsets=OFFSETS):
         acc = np.zeros(len(mine), np.float32)
         for t in tech:
             r = np.nonzero(t[mine] >= 0)[0]
-            l = t[mine][r]
-            p_j = _with_visibility(ctx, img, gs, l, i[r], _lobe_terms(img, gs, l, i[r], False)[1])
+            lobe = t[mine][r]
+            p_j = _with_visibility(ctx, img, gs, lobe, i[r], _lobe_terms(img, gs, lobe, i[r], False)[1])
             acc[r] += 1.0 / np.maximum(_pair_density(kk[r], p_j, p_c[r]), tiny)
         weight = np.where(kk > 0, acc / np.maximum(kk, 1.0), 1.0 / np.maximum(p_c, tiny))
         h = _lobe_terms(img, gs, i, i, True)[0]

@@ -21,7 +21,7 @@ from ..integrators.base import shadow_rays
 from ..util.rows import gather, scale, scatter
 from ..util.vectors import dot
 from .shift import shift_target, shift_weight, shift_weight_of, target_at
-from .temporal import DEPTH_REL_MAX, NORMAL_COS_MIN
+from .similarity import DEPTH_REL_MAX, NORMAL_COS_MIN
 
 D_SPATIAL = 1000            # first sampler dimension of the spatial pass
 

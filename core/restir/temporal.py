@@ -18,9 +18,7 @@ from ..util.rows import gather
 from .accumulation import COLUMNS
 from .denoise import MOMENTS
 from .shift import J_MAX, J_MIN, jacobian, shift_weight, target_at
-
-NORMAL_COS_MIN = 0.9        # about 25 degrees
-DEPTH_REL_MAX = 0.1
+from .similarity import DEPTH_REL_MAX, NORMAL_COS_MIN
 
 
 @dataclass

@@ -13,7 +13,8 @@ import numpy as np
 
 from ..sync.objects import camera_from_region
 from ..final import bounces, restir_settings
-from .session import DEFAULT_DENOISE, DEFAULT_DENOISE_START, DEFAULT_FRAME_BUDGET, DEFAULT_SAMPLES, DEFAULT_SCALE, ViewportSession
+from .. import defaults
+from .session import ViewportSession
 
 
 def session_settings(scene):
@@ -21,12 +22,13 @@ def session_settings(scene):
     are optional: defaults when the scene has none). The viewport denoises
     with its own toggle (Viewport Denoise), not the final renders' one."""
     s = scene.restir_gi
-    restir = replace(restir_settings(scene), denoise=bool(getattr(s, "use_preview_denoising", DEFAULT_DENOISE)))
-    return dict(mode=s.mode, scale=getattr(s, "viewport_scale", DEFAULT_SCALE),
-                samples=getattr(s, "viewport_samples", DEFAULT_SAMPLES),
-                frame_budget=getattr(s, "viewport_frame_budget", DEFAULT_FRAME_BUDGET),
+    restir = replace(restir_settings(scene),
+                     denoise=bool(getattr(s, "use_preview_denoising", defaults.VIEWPORT_DENOISE)))
+    return dict(mode=s.mode, scale=getattr(s, "viewport_scale", defaults.VIEWPORT_SCALE),
+                samples=getattr(s, "viewport_samples", defaults.VIEWPORT_SAMPLES),
+                frame_budget=getattr(s, "viewport_frame_budget", defaults.VIEWPORT_FRAME_BUDGET),
                 max_bounces=bounces(scene), seed=s.seed, restir=restir,
-                denoise_start=getattr(s, "preview_denoising_start_sample", DEFAULT_DENOISE_START))
+                denoise_start=getattr(s, "preview_denoising_start_sample", defaults.VIEWPORT_DENOISE_START))
 
 
 def view_update(engine, context, depsgraph):

@@ -51,6 +51,7 @@ from ...core.camera.film import to_rgba
 from ...core.render import CHUNK_PIXELS, path_trace_pixels
 from ...core.restir import ReSTIRGI, ReSTIRSettings
 from ...core.restir.accumulation import STILL
+from .. import defaults
 from ..sync.scene_sync import SceneSync
 from .progress import SCALES, Progress, Refinement, relative_change
 from ..sync.objects import same_camera
@@ -58,15 +59,6 @@ from ..sync.state import Update, as_update  # noqa: F401 (re-exported for tests)
 from ..sync.objects import camera_from_region, camera_from_view  # noqa: F401
 
 PATH = "PATH"
-
-# Defaults of the viewport settings (see ViewportSession).
-DEFAULT_SCALE = "AUTO"
-DEFAULT_FRAME_BUDGET = 0.25     # seconds per frame the AUTO scale aims for
-DEFAULT_SAMPLES = 1024          # frames (path tracing: samples) of a still view before it
-                                # stops, 0: no limit (Cycles' viewport samples)
-DEFAULT_SETTLE_FRAMES = 8       # frames without edits before moved objects rejoin the static scene
-DEFAULT_DENOISE = True          # ReSTIR GI: the engine's denoiser on the frames (core/restir/denoise.py)
-DEFAULT_DENOISE_START = 1       # the first sample (frame) of a still view shown denoised
 
 # An edit abandons the frame in progress and starts over with it: the frame
 # would show the scene before the edit, and finishing it only delays the one
@@ -84,8 +76,8 @@ class ViewportSession(Refinement, SceneSync):
     resolution). samples: frames (path tracing: samples) of a still view
     before the viewport stops, 0 for no limit; settle_frames: frames without
     edits before moved objects rejoin the static Embree scene; restir: the
-    ReSTIRSettings to start from (None: the defaults, with the denoiser on as
-    DEFAULT_DENOISE says); denoise_start: with the denoiser on, the first
+    ReSTIRSettings to start from (None: the defaults, with the denoiser as
+    defaults.VIEWPORT_DENOISE says); denoise_start: with the denoiser on, the first
     sample of a still view shown denoised (the ones before are shown as
     accumulated; the frames right after a change count as sample 1).
     """
@@ -94,9 +86,9 @@ class ViewportSession(Refinement, SceneSync):
     # edits, and it runs in Blender's window process.
     twin_process = False
 
-    def __init__(self, mode="RESTIR_BIASED", scale=DEFAULT_SCALE, samples=DEFAULT_SAMPLES,
-                 frame_budget=DEFAULT_FRAME_BUDGET, settle_frames=DEFAULT_SETTLE_FRAMES, max_bounces=4,
-                 seed=0, restir=None, denoise_start=DEFAULT_DENOISE_START, threads=None):
+    def __init__(self, mode="RESTIR_BIASED", scale=defaults.VIEWPORT_SCALE, samples=defaults.VIEWPORT_SAMPLES,
+                 frame_budget=defaults.VIEWPORT_FRAME_BUDGET, settle_frames=defaults.VIEWPORT_SETTLE_FRAMES,
+                 max_bounces=4, seed=0, restir=None, denoise_start=defaults.VIEWPORT_DENOISE_START, threads=None):
         super().__init__(threads)
         self.progress = Progress(samples)
         self._set_settings(mode, scale, samples, frame_budget, settle_frames, max_bounces, seed,
@@ -138,7 +130,7 @@ class ViewportSession(Refinement, SceneSync):
         self.settle_frames = max(1, int(settle_frames))
         self.max_bounces = max_bounces if isinstance(max_bounces, Bounces) else int(max_bounces)
         self.seed = int(seed)
-        base = restir if restir is not None else ReSTIRSettings(denoise=DEFAULT_DENOISE)
+        base = restir if restir is not None else ReSTIRSettings(denoise=defaults.VIEWPORT_DENOISE)
         # One initial sample per pixel per frame, and stored samples validated
         # every validation_interval frames: the viewport favours frame rate.
         self.restir_settings = replace(base, mode=mode if mode != PATH else base.mode,
@@ -151,9 +143,9 @@ class ViewportSession(Refinement, SceneSync):
             self.restir_settings, accumulate=STILL if self.restir_settings.accumulate > 1 else 1,
             temporal_M_cap=min(self.restir_settings.temporal_M_cap, self.restir_settings.still_temporal_M_cap))
 
-    def configure(self, mode="RESTIR_BIASED", scale=DEFAULT_SCALE, samples=DEFAULT_SAMPLES,
-                  frame_budget=DEFAULT_FRAME_BUDGET, settle_frames=DEFAULT_SETTLE_FRAMES, max_bounces=4,
-                  seed=0, restir=None, denoise_start=DEFAULT_DENOISE_START):
+    def configure(self, mode="RESTIR_BIASED", scale=defaults.VIEWPORT_SCALE, samples=defaults.VIEWPORT_SAMPLES,
+                  frame_budget=defaults.VIEWPORT_FRAME_BUDGET, settle_frames=defaults.VIEWPORT_SETTLE_FRAMES,
+                  max_bounces=4, seed=0, restir=None, denoise_start=defaults.VIEWPORT_DENOISE_START):
         """New settings (same arguments as the constructor); restarts the image
         only if something changed. The sample limit and the denoiser's start
         sample do not restart it (a higher limit goes on refining)."""

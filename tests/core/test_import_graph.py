@@ -22,6 +22,7 @@ LAYERS = [
     ["core.scene_patch", "core.object_motion"],
     ["core.render"],
     ["core"],
+    ["restir_addon.defaults"],
     ["restir_addon.memory", "restir_addon.passes", "restir_addon.properties", "restir_addon.ui"],
     ["restir_addon.export"],
     ["restir_addon.motion_blur"],

@@ -291,6 +291,7 @@ def test09_unbiased_mean_is_kept(ctx, reference):
 def test10_settings_reach_the_renderer(addon):
     from support.addon_util import fresh
     final, draw, vp = addon.restir_addon.final, addon.restir_addon.viewport.draw, addon.restir_addon.viewport.session
+    defaults = addon.restir_addon.defaults
     scene = fresh(mode="RESTIR_BIASED")
     s = scene.restir_gi
     assert s.use_denoising and s.use_preview_denoising      # on by default in both
@@ -302,7 +303,7 @@ def test10_settings_reach_the_renderer(addon):
     s.use_denoising, s.use_preview_denoising = True, False
     assert final.restir_settings(scene).denoise
     assert not draw.session_settings(scene)["restir"].denoise
-    for kwargs, expect in ((draw.session_settings(scene), False), ({}, vp.DEFAULT_DENOISE)):
+    for kwargs, expect in ((draw.session_settings(scene), False), ({}, defaults.VIEWPORT_DENOISE)):
         session = vp.ViewportSession(**kwargs)
         try:
             assert session.restir_settings.denoise == expect
