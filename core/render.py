@@ -165,10 +165,8 @@ def render_restir(ctx, restir, settings, frame, frames=1, fresh=False, on_frame=
                     restir.restart_accumulation()
                 # The mean of the frames converges as fast as they are independent;
                 # reservoirs that keep a sample for up to temporal_M_cap frames make
-                # neighbouring frames alike. Unbiased stills, 64 warm-up frames,
-                # three seeds (docs/plan.md): courtyard MSE 1.8x lower with a cap of
-                # 4 after settling, emitters and glossy 2 % lower, the two rooms
-                # lit through openings 3-4 % higher.
+                # neighbouring frames alike, so a settled still lowers the cap
+                # (docs/plan-archive.md has the corpus measurements).
                 run = dataclasses.replace(run, temporal_M_cap=min(run.temporal_M_cap,
                                                                   settings.still_temporal_M_cap))
             weight = still_frame_weight(i) if ramp else 1.0

@@ -12,6 +12,10 @@ UNBIASED = "RESTIR_UNBIASED"
 
 @dataclass
 class ReSTIRSettings:
+    """How a ReSTIR GI frame resamples. These are the engine's defaults: the
+    add-on's settings (restir_addon/defaults.py) read them. Why each value:
+    docs/design.md, "Design choices"; the measurements behind them:
+    docs/plan-archive.md."""
     mode: str = BIASED
     samples: int = 1                # initial samples per pixel per frame
     max_bounces: int = 4
@@ -19,31 +23,22 @@ class ReSTIRSettings:
     initial_sampling: str = COSINE  # or "UNIFORM"
     temporal: bool = True
     spatial: bool = True
-    temporal_M_cap: float = 8.0     # RTXDI's; 20 held each sample for more frames, so the running
-                                    # means averaged fewer distinct ones: 32 frames, corpus,
-                                    # unbiased MSE 0-2 % lower, courtyard 22-28 %; biased within
-                                    # 0.5 % (docs/plan.md)
-    spatial_M_cap: float = 100.0    # Falcor's; 500 (Mitsuba's tutorial) kept the biased mode's
-                                    # carried spatial samples so long that the running means
-                                    # averaged few distinct ones: 32 frames, corpus, biased MSE
-                                    # 1-3 % lower everywhere, courtyard 13-17 % (docs/plan.md)
-    max_age: int = 30
+    temporal_M_cap: float = 8.0     # RTXDI's; higher caps hold each sample for more frames,
+                                    # so the running means average fewer distinct ones
+    spatial_M_cap: float = 100.0    # Falcor's; the same trade-off for carried spatial samples
+    max_age: int = 30               # frames a reused sample lives
     spatial_neighbors: int = 4
-    spatial_radius: float = 16.0    # pixels; 8 lowered stills' MSE (-1 to -30 %) but turned a
-                                    # moving view's fine noise into crawling blotches (docs/plan.md)
+    spatial_radius: float = 16.0    # pixels; smaller radii help stills but turn a moving
+                                    # view's fine noise into crawling blotches
     validation_interval: int = 4    # frames; 0 turns validation off
     validate_on_change: bool = False    # validate in the very frame the lighting changed (final
-                                        # renders: waiting for the interval left the frames
-                                        # between 15 % dark after a lamp's jump, and 7 % after)
+                                        # renders: frames waiting for the interval stay dark)
     boiling_filter: float = 0.2     # strength (boiling.py), biased mode only; 0 turns it off
     light_samples: int = 4          # shadow rays for the direct light of visible points in
-                                    # penumbrae (one elsewhere: adaptive_direct.py). 16 was
-                                    # worth it before accumulation; now 4 gives the same room
-                                    # MSE and costs far less where most pixels are flagged
-                                    # (glossy corpus scene: 716 -> 376 ms per frame)
+                                    # penumbrae (one elsewhere: adaptive_direct.py)
     still_temporal_M_cap: float = 4.0   # temporal cap of a still's frames after it settles
-                                        # (core/render.py): less correlated frames, so
-                                        # their mean converges faster (docs/plan.md)
+                                        # (core/render.py): less correlated frames, whose
+                                        # mean converges faster
     edge_samples: int = 32          # camera rays for the radiance seen directly at bright
                                     # silhouettes (silhouettes.py; 1 turns it off)
     accumulate: int = 16            # frames in each pixel's running mean (accumulation.py);

@@ -37,8 +37,8 @@ from .initial import world_share
 SKY_SAMPLE = 0x5C1E5        # key of each pixel's scrambles of its sky ray sequence
 SKY_SHARE_MIN = 0.1         # below this share of a pixel's light last frame, fewer sky rays
 SHARE_RADIUS = 4            # pixels around each whose sky share decides its rays (pixel_shares)
-SKY_KEEP_MIN = 0.5          # the least share of frames in which a point casts a sky ray (room
-                            # still, MSE against no sky rays: 1/16 +10 %, 1/4 +2 %, 1/2 +0.1 %)
+SKY_KEEP_MIN = 0.5          # the least share of frames in which a point casts a sky ray (fewer
+                            # left the sky's light noisier than without sky rays)
 _GOLDEN = 0.6180339887498949
 SKY_DIM = 7                 # a bounce-0 dimension no other decision reads (hashed uniforms)
 

@@ -34,8 +34,8 @@ from ..memory import SceneTooLarge
 MOVING, REFINING, SAMPLING, DONE = "moving", "refining", "sampling", "done"
 
 SCALES = {"FULL": 1, "HALF": 2, "QUARTER": 4}
-STEP_FRAMES = 6             # frames at a divisor of a still view before the next finer one (2 gave
-                            # MSE 477 / 195 at 10 / 20 s, 6 gave 275 / 142: bench/viewport_refine.py)
+STEP_FRAMES = 6             # frames at a divisor of a still view before the next finer one: the
+                            # finer step starts from settled reservoirs (bench/viewport_refine.py)
 CONVERGED_CHANGE = 1e-3     # under a quarter of an 8-bit step at mid grey, on average
 CONVERGED_RUN = 4
 CONVERGED_MIN_SAMPLES = 32
