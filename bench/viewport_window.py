@@ -32,7 +32,6 @@ The ReSTIR GI package is built from the committed tree (HEAD).
 import argparse
 import json
 import os
-import re
 import shutil
 import sys
 import time
@@ -42,6 +41,7 @@ import numpy as np
 ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 sys.path.insert(0, os.path.join(ROOT, "tools"))
 import real_blender  # noqa: E402
+from real_blender_driver import read_log  # noqa: E402
 
 OUT = os.path.join(ROOT, "bench", "out", "viewport_window")
 DRIVER = os.path.join(ROOT, "bench", "viewport_window_driver.py")
@@ -62,17 +62,6 @@ def package():
     head = subprocess.run(["git", "-C", ROOT, "rev-parse", "--short", "HEAD"], check=True,
                           capture_output=True, text=True).stdout.strip()
     return os.path.join(src, "dist", "restir_gi-0.1.0-linux_x64.zip"), head
-
-
-def read_log(folder):
-    """DRIVER lines of blender.log: key -> list of value strings."""
-    lines = {}
-    with open(os.path.join(folder, "blender.log"), errors="replace") as fh:
-        for line in fh:
-            m = re.match(r"DRIVER ([\d.]+) ([^:]+): ?(.*)", line.rstrip("\n"))
-            if m:
-                lines.setdefault(m.group(2), []).append(m.group(3))
-    return lines
 
 
 def read_png(path):

@@ -20,7 +20,8 @@ REAL_MODE=reference: renders the file's camera with Cycles in ``blender -b``
 at REAL_SIZE (WxH) with REAL_SAMPLES samples, saved through the file's view
 transform as reference.png, and quits.
 
-Every step prints a line starting with DRIVER, read back from blender.log.
+Every step prints a line starting with DRIVER, read back from blender.log
+(tools/real_blender_driver.py).
 """
 
 import gc
@@ -33,29 +34,16 @@ import traceback
 
 import bpy
 
-T0 = time.time()
-OUT = os.environ.get("REAL_OUT", ".")
+# tools/real_blender.py copies tools/real_blender_driver.py beside this script.
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from real_blender_driver import OUT, grab, say, say_versions, step  # noqa: E402
+
 MODE = os.environ.get("REAL_MODE", "viewport")
 ENGINE = os.environ.get("REAL_ENGINE", "RESTIR_GI")
 SHOTS = [float(s) for s in os.environ.get("REAL_SHOTS", "5,10,20").split(",")]
 POLL = 0.25            # seconds between crops of the camera frame (time to first image)
 POLL_SECONDS = 6.0
 state = {}
-
-
-def say(key, *values):
-    print("DRIVER", f"{time.time() - T0:.2f}", f"{key}:", *values, flush=True)
-
-
-def step(fn):
-    def run():
-        try:
-            return fn()
-        except Exception:
-            traceback.print_exc()
-            say("failed", fn.__name__)
-            bpy.ops.wm.quit_blender()
-    return run
 
 
 def view3d():
@@ -79,16 +67,6 @@ def camera_rect(region, rv3d):
     pts = [location_3d_to_region_2d(region, rv3d, c) for c in corners]
     xs, ys = [p.x for p in pts], [p.y for p in pts]
     return (region.x + min(xs), region.y + min(ys), region.x + max(xs), region.y + max(ys))
-
-
-def grab(name, crop=None):
-    """A screenshot (ImageMagick's import: Blender's own reads back black
-    under software OpenGL); crop: (w, h, x, y) from the screen's top left."""
-    cmd = ["import", "-window", "root"]
-    if crop is not None:
-        cmd += ["-crop", "%dx%d+%d+%d" % crop]
-    cmd.append(os.path.join(OUT, name))
-    subprocess.run(cmd, check=True, timeout=30)
 
 
 @step
@@ -213,7 +191,7 @@ def reference():
     bpy.ops.wm.quit_blender()
 
 
-say("versions", sys.version.split()[0], bpy.app.version_string)
+say_versions()
 if MODE == "reference":
     bpy.app.timers.register(reference, first_interval=1.0)
 else:

@@ -11,7 +11,8 @@ a 1280x800 virtual screen:
 
 installs the extension zip into a fresh user folder, opens FILE.blend (the
 image files beside it travel along), runs DRIVER.py in the UI (it should
-quit Blender when done; ``bpy.app.timers`` work there), and writes
+quit Blender when done; ``bpy.app.timers`` work there; it finds
+``tools/real_blender_driver.py`` beside it), and writes
 ``shot_<s>.png`` (the whole screen at those seconds after start),
 ``blender.log`` and ``install.log`` into OUTDIR, with whatever the driver
 wrote into its ``OUT`` folder (the environment variable ``REAL_OUT``).
@@ -35,6 +36,8 @@ import sys
 import tempfile
 
 DEFAULT_ROOT = "/var/tmp/real-blender/sid"
+# What every driver imports: copied beside it.
+DRIVER_SHARED = os.path.join(os.path.dirname(os.path.abspath(__file__)), "real_blender_driver.py")
 IMAGE_SUFFIXES = (".blend", ".png", ".jpg", ".jpeg", ".exr", ".hdr", ".tif", ".tiff")
 
 
@@ -101,6 +104,7 @@ def run(package: str, blend: str, driver: str, outdir: str, shots: list[float],
     try:
         shutil.copy2(package, os.path.join(job, "ext.zip"))
         shutil.copy2(driver, os.path.join(job, "driver.py"))
+        shutil.copy2(DRIVER_SHARED, os.path.join(job, os.path.basename(DRIVER_SHARED)))
         _copy_beside(blend, job)
         os.makedirs(os.path.join(job, "out"))
         exports = {k: v for k, v in {**os.environ, **(env or {})}.items() if k.startswith("REAL_")}

@@ -9,7 +9,6 @@ logs land in bench/out/e2e/.
 """
 
 import os
-import re
 import shutil
 import subprocess
 import sys
@@ -20,6 +19,7 @@ import pytest
 ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 sys.path.insert(0, os.path.join(ROOT, "tools"))
 import real_blender  # noqa: E402
+from real_blender_driver import read_log  # noqa: E402
 
 OUT = os.path.join(ROOT, "bench", "out", "e2e")
 DRIVER = os.path.join(os.path.dirname(os.path.abspath(__file__)), "window_driver.py")
@@ -48,12 +48,7 @@ def session():
                           limit=420)
     with open(os.path.join(OUT, "blender.log"), errors="replace") as fh:
         log = fh.read()
-    lines = {}
-    for line in log.splitlines():
-        m = re.match(r"DRIVER [\d.]+ ([^:]+): ?(.*)", line)
-        if m:
-            lines.setdefault(m.group(1), []).append(m.group(2))
-    return rc, log, lines
+    return rc, log, read_log(OUT)
 
 
 def _image(path):

@@ -11,39 +11,23 @@ writes the image; then it opens the Preferences on Add-ons, renders a few
 animation frames headless with ``blender -b FILE -E RESTIR_GI -a`` and
 quits. It takes its own screenshots of the window (solid.png, rendered.png
 just before F12, preferences.png) into REAL_OUT. Every step prints a line
-starting with DRIVER, read back from blender.log."""
+starting with DRIVER, read back from blender.log (tools/real_blender_driver.py)."""
 
 import os
 import subprocess
 import sys
 import time
-import traceback
 
 import bpy
 
-T0 = time.time()
-OUT = os.environ.get("REAL_OUT", ".")
+# tools/real_blender.py copies tools/real_blender_driver.py beside this script.
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from real_blender_driver import OUT, grab, say, say_versions, step  # noqa: E402
+
 RENDERED_AT = float(os.environ.get("REAL_RENDERED", "4"))
 F12_AT = float(os.environ.get("REAL_F12", "14"))
 PREVIEW_WAIT = float(os.environ.get("REAL_PREVIEW_WAIT", "5"))
 ENGINE = "RESTIR_GI"
-
-
-def say(key, *values):
-    """A line ``DRIVER <seconds> <key>: <values>`` for the test to read."""
-    print("DRIVER", f"{time.time() - T0:.2f}", f"{key}:", *values, flush=True)
-
-
-def step(fn):
-    """A timer callback that reports its own failure and quits, never hangs."""
-    def run():
-        try:
-            return fn()
-        except Exception:
-            traceback.print_exc()
-            say("failed", fn.__name__)
-            bpy.ops.wm.quit_blender()
-    return run
 
 
 def areas(kind):
@@ -54,10 +38,8 @@ def areas(kind):
 
 
 def screenshot(name):
-    """The whole screen as the user sees it, into OUT/name (ImageMagick's
-    import: Blender's own screenshot operator reads back black under
-    software OpenGL)."""
-    subprocess.run(["import", "-window", "root", os.path.join(OUT, name)], check=True, timeout=30)
+    """The whole screen as the user sees it, into OUT/name."""
+    grab(name)
     say("screenshot", name)
 
 
@@ -158,7 +140,7 @@ def batch():
     bpy.ops.wm.quit_blender()
 
 
-say("versions", sys.version.split()[0], bpy.app.version_string)
+say_versions()
 bpy.app.timers.register(pick_engine, first_interval=1.5)
 bpy.app.timers.register(material_tab, first_interval=2.0)
 bpy.app.timers.register(rendered_viewport, first_interval=RENDERED_AT)
