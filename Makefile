@@ -10,7 +10,8 @@
 #                    .venv-py311, requirements-py311.txt
 # e.g. `make test` (whole suite, current LTS), `make LINE=py311 test`,
 # `make test-py311` (the 3.11 line's packaging, install and render tests,
-# `make LINE=py311 test-subset`).
+# `make LINE=py311 test-subset`), `make lint` (ruff, configured in
+# pyproject.toml; installed into the environment when missing).
 
 LINE ?= py313
 ifeq ($(LINE),py313)
@@ -57,7 +58,7 @@ EXT_SOURCES := __init__.py blender_manifest.toml \
 # Keeps Blender away from the user's own configuration (~/.config/blender).
 export BLENDER_USER_RESOURCES := $(CURDIR)/$(USER_DIR)
 
-.PHONY: all venv build render test test-subset test-py311 e2e clean distclean
+.PHONY: all venv build render test test-subset test-py311 e2e lint clean distclean
 
 all: build
 
@@ -96,6 +97,15 @@ test-py311:
 # test skips with the reason where it is missing. Screenshots: bench/out/e2e/.
 e2e: $(STAMP) $(ZIP)
 	$(PY) -m pytest -q -rs $(PYTEST_ARGS) tests/e2e
+
+# ruff, pinned to one minor version: installed into $(VENV) when missing or
+# of another version.
+RUFF_MINOR := 0.17
+
+lint: $(STAMP)
+	@$(PY) -m ruff --version 2>/dev/null | grep -q '^ruff $(subst .,\.,$(RUFF_MINOR))\.' || \
+		$(PY) -m pip install "ruff==$(RUFF_MINOR).*"
+	$(PY) -m ruff check .
 
 clean:
 	rm -rf dist build out .blender_user .blender_user-py311 .pytest_cache

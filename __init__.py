@@ -6,10 +6,10 @@ The repository root is the extension root; the add-on itself lives in
 
 
 def register():
-    from .restir_addon import register as _register
+    from .restir_addon import register as _register  # noqa: PLC0415 (bpy: the package imports without it)
     _register()
 
 
 def unregister():
-    from .restir_addon import unregister as _unregister
+    from .restir_addon import unregister as _unregister  # noqa: PLC0415
     _unregister()

@@ -33,7 +33,7 @@ def point_intensity(power, color=(1.0, 1.0, 1.0), exposure=0.0):
     return np.asarray(color) * power * 2.0 ** exposure / (4.0 * math.pi)
 
 
-def point_irradiance(I, h, radius=0.0, soft_falloff=True, mask=None):
+def point_irradiance(I, h, radius=0.0, soft_falloff=True, mask=None):  # noqa: E741 (the formula's I)
     """Mean irradiance over the camera patch on the z = 0 plane from a light at height h.
 
     soft falloff on (default): the light is a disk of radius r facing the receiver,
@@ -119,7 +119,7 @@ def case_point():
         receiver(sc)
         add_light(sc, "POINT", (0, 0, h), energy=P, color=col, shadow_soft_size=radius,
                   use_soft_falloff=soft, **extra)
-        I = point_intensity(P, col, extra.get("exposure", 0.0))
+        I = point_intensity(P, col, extra.get("exposure", 0.0))  # noqa: E741
         tag = "soft falloff" if soft else "sphere (soft falloff off)"
         ex = ", exposure=1" if extra else ""
         record(f"point P=100 r={radius} h=2 {tag}{ex}: pixel", lam(point_irradiance(I, h, radius, soft)),

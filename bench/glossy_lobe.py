@@ -97,7 +97,7 @@ def reuse(ctx, pixel_filter, seeds, offsets, diffuse=False):
         usable_sample = ((res.prim2[gb.index] >= 0) | diffuse) & (res.M[gb.index] > 0)
         glossy = np.ones(n, bool) if diffuse else fr.params.p_spec > 0
 
-        def area_density(l, x, nx):
+        def area_density(l, x, nx):  # noqa: E741 (pixel l, as in the formula above)
             """Density of pixel rows l's direction sampler at points x (normals nx), per area."""
             to = x - surf.p[l]
             d2 = np.maximum(dot(to, to), 1e-12)
@@ -134,7 +134,7 @@ def reuse(ctx, pixel_filter, seeds, offsets, diffuse=False):
                 value = value * ~ctx.accel.occluded(o, d, tmax)
             total = np.zeros(len(i))
             for lc in range(cand.shape[1]):
-                l = cand[i, lc]
+                l = cand[i, lc]  # noqa: E741
                 has = np.nonzero(l >= 0)[0]
                 dens = area_density(l[has], x[has], nx[has])
                 if lc not in (0, c) and len(has):

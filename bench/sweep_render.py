@@ -48,7 +48,7 @@ def visible_corners(bpy, depsgraph):
 def frame_camera(bpy, scene) -> str:
     """Make the scene camera frame every visible object; what was done, in words."""
     import numpy as np
-    from mathutils import Euler, Vector
+    from mathutils import Euler
     depsgraph = bpy.context.evaluated_depsgraph_get()
     pts = visible_corners(bpy, depsgraph)
     cam = scene.camera

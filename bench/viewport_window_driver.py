@@ -149,7 +149,7 @@ def watch_session():
                 say("status", f"{t:.2f}", status)
             state["status"] = status
             time.sleep(0.01)
-    except Exception:
+    except Exception:  # noqa: BLE001 -- a thread that only watches: print and stop
         traceback.print_exc()
 
 

@@ -72,7 +72,7 @@ def make(old_ctx, new_ctx, old_updates):
     buffers = []
     try:
         head = pickle.dumps(send, protocol=5, buffer_callback=buffers.append)
-    except Exception:       # (compiled shading graphs, say: fork anew)
+    except Exception:       # noqa: BLE001 -- compiled shading graphs, say: fork anew
         return None
     if len(head) + sum(b.raw().nbytes for b in buffers) > MAX_BYTES:
         return None

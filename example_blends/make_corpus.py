@@ -124,7 +124,7 @@ def build_glossy():
     gold = principled_material("Gold", (1.0, 0.8, 0.4), 0.22, metallic=1.0)
     red = principled_material("RedLacquer", (0.7, 0.08, 0.06), 0.3)
     blue = principled_material("BluePlastic", (0.1, 0.2, 0.55), 0.4)
-    (x0, x1), (y0, y1), (z0, z1) = x, y, z
+    x0, y1 = x[0], y[1]
     room_shell(x, y, z, {"floor": floor, "ceiling": walls, "walls": walls}, skip=("LeftWall",))
     add_wall_with_hole("WindowWall", 0, x0, (1, 0, 0), y, z, ((-1.2, -0.2), (1.0, 2.2)), walls)
     # Metal panels 2 cm in front of the back wall.

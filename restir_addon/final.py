@@ -399,7 +399,7 @@ def _render_view(engine, depsgraph, view, report=True, stream=None, preview=Fals
                             rays=ctx.accel.rays_traced - rays_before)
     except SceneTooLarge as exc:
         engine.report({"ERROR"}, str(exc))
-    except Exception as exc:  # report, never kill the render
+    except Exception as exc:  # noqa: BLE001 -- report, never kill the render
         traceback.print_exc()
         engine.report({"ERROR"}, f"ReSTIR GI render failed: {describe(exc)}")
     finally:

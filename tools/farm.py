@@ -300,7 +300,7 @@ def run(args) -> Summary:
                 detail = (f" (first frame {times[0]:.1f} s, the others {rest[len(rest) // 2]:.2f} s "
                           f"median)" if rest else "")
                 log(f"chunk {chunk[0]}-{chunk[1]} done on {worker} in {seconds:.1f} s{detail}")
-            except Exception as exc:        # ChunkFailed, a lost worker, ...
+            except Exception as exc:        # noqa: BLE001 -- ChunkFailed, a lost worker, ...
                 summary.written += getattr(exc, "written", [])
                 summary.failures.append(str(exc) or type(exc).__name__)
                 log(f"chunk {chunk[0]}-{chunk[1]} failed: {summary.failures[-1]}")

@@ -84,7 +84,7 @@ def write_png(path, linear_rgb):
 
 def write_exr(path, linear_rgb):
     """32-bit float RGB EXR (linear), bottom row first in memory."""
-    import OpenEXR
+    import OpenEXR  # noqa: PLC0415 (loaded for EXR files only)
     img = np.ascontiguousarray(np.asarray(linear_rgb, np.float32)[::-1])
     channels = {"RGB": img}
     header = {"compression": OpenEXR.ZIP_COMPRESSION, "type": OpenEXR.scanlineimage}
@@ -95,7 +95,7 @@ def write_exr(path, linear_rgb):
 def read_exr(path):
     """(H, W, 3) float32, bottom row first, from an EXR written by us or by Blender
     (single-part RGB(A), or the Combined pass of a multilayer file)."""
-    import OpenEXR
+    import OpenEXR  # noqa: PLC0415
     with OpenEXR.File(str(path), separate_channels=True) as f:
         for part in f.parts:
             ch = part.channels

@@ -11,6 +11,7 @@ from dataclasses import replace
 import numpy as np
 
 from . import panorama
+from .motion import rigid_at
 from ..util.rows import matmul3
 from ..sampling.warps import Distribution1D, square_to_concentric_disk
 
@@ -159,7 +160,6 @@ def generate_rays(camera, width, height, pixel_xy, lens_u=None, time_u=None):
 def _moving_rays(camera, width, height, pixel_xy, lens_u, time_u):
     """generate_rays of a camera that moves over the shutter: the rays in its
     own frame, then each moved by the camera at its time."""
-    from .motion import rigid_at
     still = replace(camera, to_world=np.eye(4, dtype=np.float32), motion=None)
     o, d, tmax = generate_rays(still, width, height, pixel_xy, lens_u)
     r, t = rigid_at(camera.motion, time_u)

@@ -61,8 +61,8 @@ class Accel:
     """An Embree scene over a Scene's triangles, with thread-split batch queries."""
 
     def __init__(self, vertices, triangles, threads=None):
-        from embreex import rtcore_scene
-        from embreex.mesh_construction import TriangleMesh
+        from embreex import rtcore_scene  # noqa: PLC0415 (Embree's library: loaded when a scene is built)
+        from embreex.mesh_construction import TriangleMesh  # noqa: PLC0415
 
         self.triangle_count = len(triangles)
         self.rays_traced = 0          # counters for benchmarks: rays and seconds in Embree

@@ -27,6 +27,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..geometry.accel import Accel
+from ..util.vectors import orthonormal_basis
 
 MAX_CROSSINGS = 16
 C = 10          # coefficients carried per interval: sigma_t (3), sigma_s (3), emission (3), mean sigma_s x g
@@ -108,7 +109,6 @@ class Media:
         the others meet no medium."""
         t_all, b_all = self.crossings(o, d)
         end_all = np.asarray(t_end, np.float64).reshape(-1)
-        n = len(end_all)
         rows = np.nonzero((b_all >= 0).any(axis=1))[0]
         k = int((b_all[rows] >= 0).sum(axis=1).max(initial=0))
         t, b = t_all[rows, :k], b_all[rows, :k]
@@ -239,7 +239,6 @@ def hg_pdf(cos_theta, g):
 def hg_sample(d, g, u):
     """New directions (N, 3) around ray directions d (N, 3), drawn from HG
     of anisotropy g (N,) with uniforms u (N, 2); and their pdf."""
-    from ..util.vectors import orthonormal_basis
     g = np.asarray(g, np.float64)
     u0, u1 = u[:, 0].astype(np.float64), u[:, 1].astype(np.float64)
     small = np.abs(g) < 1e-3

@@ -21,6 +21,7 @@ from ..geometry.accel import offset_origins
 from ..camera.projection import generate_rays, view_depth
 from ..geometry.interaction import surface_hits
 from .media import media_of
+from .media_path import camera_radiance
 from ..util.rows import gather, row_max, scale, scatter, scatter_add
 from ..util.vectors import luminance
 from ..sampling.warps import power_heuristic
@@ -167,7 +168,6 @@ def camera_pass(ctx, width, height, seed, frame, sample, max_bounces, pixel_filt
     hits = ctx.accel.intersect_closest(o, d, tmax, camera=True)
     media = media_of(scene, ctx.eps)
     if media is not None:
-        from .media_path import camera_radiance
         color = camera_radiance(ctx, media, o, d, tmax, hits, seeds, max_bounces)
         return _with_aovs(ctx, color, o, d, hits, n, tmax)
     color = ctx.lights.emitted_along(o, d, np.minimum(hits.t, tmax))

@@ -71,7 +71,7 @@ def large_solid_angles(p, p0, e1, e2):
         maybe = np.nonzero(2.0 * np.pi * r2 > MIN_SOLID_ANGLE * np.maximum(d2 - r2, 0.0))[0]
     if len(maybe) == 0:
         return omega, maybe
-    rows = (lambda v: v if len(v) == 1 and n > 1 else gather(v, maybe))
+    rows = (lambda v: v if len(v) == 1 and n > 1 else gather(v, maybe))  # noqa: E731
     q0 = rows(p0)
     omega[maybe] = solid_angle(gather(p, maybe), q0, q0 + rows(e1), q0 + rows(e2))
     near = maybe[use_solid_angle(omega[maybe])]

@@ -115,7 +115,7 @@ class Twin:
                 if threading.current_thread() is threading.main_thread():
                     signal.signal(signal.SIGINT, signal.SIG_DFL)
                 _die_with_parent()
-            except BaseException:
+            except BaseException:  # noqa: BLE001 -- the child must not return into the parent's code
                 os._exit(1)
         else:
             twin.pid = pid
@@ -167,7 +167,7 @@ class Twin:
                 fn, args = self._receive(k)
                 self.calls += 1
                 state = fn(*state, *args)
-        except BaseException:
+        except BaseException:  # noqa: BLE001 -- the parent gone or a loop failed: exit, never return
             pass
         os._exit(0)
 
@@ -334,7 +334,7 @@ def _picklable(e):
     try:
         pickle.loads(pickle.dumps(e))
         return e
-    except Exception:
+    except Exception:  # noqa: BLE001 -- not picklable: sent as a RuntimeError
         out = RuntimeError(f"{type(e).__name__}: {e}")
         for note in getattr(e, "__notes__", ()):    # where it happened (core/util/errors.py)
             out.add_note(note)
@@ -357,7 +357,7 @@ def _read_exactly(fd, n):
 def _die_with_parent():
     """The child is killed if the parent dies (Linux prctl PR_SET_PDEATHSIG)."""
     try:
-        import ctypes
+        import ctypes  # noqa: PLC0415 (inside the try: Linux only)
         libc = ctypes.CDLL(None)
         libc.prctl(1, signal.SIGKILL)
     except (OSError, AttributeError):

@@ -42,6 +42,7 @@ import os
 import re
 from contextlib import contextmanager
 
+import bpy
 import numpy as np
 
 from ...core.materials.texture import ImageSet, from_pixels, magenta
@@ -75,12 +76,10 @@ def rendering():
 def _removal_safe():
     """No final render runs: neither one of this process's (rendering()) nor a
     render job of the UI (whose depsgraph a viewport read must not disturb)."""
-    import bpy
     return _renders == 0 and not bpy.app.is_job_running("RENDER")
 
 
 def _temporaries():
-    import bpy
     return [im for im in bpy.data.images
             if im.name.startswith(TEMPORARY) and im.users == 0 and im.library is None]
 
@@ -92,7 +91,6 @@ def sweep():
     next interval."""
     global _kept
     if _kept and _removal_safe():
-        import bpy
         _kept = False
         for im in _temporaries():
             bpy.data.images.remove(im)
@@ -103,7 +101,6 @@ def _discard(image):
     """Remove a temporary image now, or keep it (pixels freed) for sweep()."""
     global _kept
     if _removal_safe():
-        import bpy
         bpy.data.images.remove(image)
         return
     image.buffers_free()
@@ -164,7 +161,6 @@ def tile_path(path, number):
 
 
 def _abspath(image, path=None):
-    import bpy
     return bpy.path.abspath(image.filepath_raw if path is None else path, library=image.library)
 
 
@@ -226,7 +222,6 @@ class ImageCache:
         return ImageSet.single(self._read_image(image, name))
 
     def _read_tiled(self, image):
-        import bpy
         name = image.name_full
         numbers = [t.number for t in image.tiles]
         path = _abspath(image) if image.filepath_raw else ""
@@ -248,7 +243,6 @@ class ImageCache:
 
     def _read_file(self, like, path, label):
         """An image file loaded as a temporary image with like's colour settings."""
-        import bpy
         if not os.path.isfile(path):
             self.warn(f"Image '{label}': cannot read '{path}'; it renders magenta")
             return from_pixels(np.zeros((0, 0, 4), np.float32), label)

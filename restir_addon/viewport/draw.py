@@ -44,7 +44,7 @@ def view_update(engine, context, depsgraph):
             return
         session.configure(**session_settings(depsgraph.scene))
         session.sync(depsgraph, depsgraph.updates)
-    except Exception as exc:  # never let the viewport die with a traceback
+    except Exception as exc:  # noqa: BLE001 -- never let the viewport die with a traceback
         traceback.print_exc()
         engine.update_stats("", f"ReSTIR GI viewport failed: {exc}")
 
@@ -66,7 +66,7 @@ def view_draw(engine, context, depsgraph):
         engine.update_stats("", f"ReSTIR GI | {session.status()}")
         if not session.converged:
             engine.tag_redraw()
-    except Exception as exc:
+    except Exception as exc:  # noqa: BLE001 -- as above
         traceback.print_exc()
         engine.update_stats("", f"ReSTIR GI viewport failed: {exc}")
 
@@ -74,8 +74,8 @@ def view_draw(engine, context, depsgraph):
 def _draw(engine, scene, frame, serial, width, height):
     """Draw a frame over the region through Blender's display transform (the
     texture is uploaded once per new frame)."""
-    import gpu
-    from gpu_extras.presets import draw_texture_2d
+    import gpu  # noqa: PLC0415 (Blender's GPU module: not in the bpy module the tests use)
+    from gpu_extras.presets import draw_texture_2d  # noqa: PLC0415
     cached = getattr(engine, "viewport_texture", None)
     if cached is None or cached[0] != serial:
         frame = np.ascontiguousarray(frame, np.float32)
@@ -96,7 +96,7 @@ def free(engine):
     """The viewport closed: stop the render thread without waiting for it."""
     try:
         session = getattr(engine, "viewport_session", None)
-    except Exception:   # the engine's Blender data may already be gone
+    except Exception:   # noqa: BLE001 -- the engine's Blender data may already be gone
         return
     if session is not None:
         engine.viewport_session = None

@@ -332,7 +332,7 @@ class ViewportSession(Refinement, SceneSync):
                     self.error = None
                 except TraceInterrupted:
                     continue
-                except Exception as exc:  # keep the viewport alive; show the error, wait for edits
+                except Exception as exc:  # noqa: BLE001 -- keep the viewport alive; show the error, wait for edits
                     traceback.print_exc()
                     self.error = describe(exc)
         finally:

@@ -41,7 +41,7 @@ def _same(a, b):
 
 
 @pytest.mark.parametrize("persistent", [False, True], ids=["compare", "persistent"])
-def test_chunk_continues_the_continuous_render(addon, reports, tmp_path, edits_handler, persistent):
+def test_chunk_continues_the_continuous_render(addon, reports, tmp_path, edits_handler, persistent):  # noqa: F811
     """A chunk 3..4 whose warm-up reaches back to frame 1 renders frames 3 and
     4 as the continuous render 1..4 does (same random numbers), writes only
     its own frames, and starting cold instead gives other pixels."""
@@ -66,7 +66,7 @@ def test_chunk_continues_the_continuous_render(addon, reports, tmp_path, edits_h
     assert reports.of("ERROR") == []
 
 
-def test_chunk_warmup_starts_where_a_render_would(addon, reports, tmp_path, edits_handler):
+def test_chunk_warmup_starts_where_a_render_would(addon, reports, tmp_path, edits_handler):  # noqa: F811
     """With one frame of warm-up, a chunk 3..4 renders as an animation that
     started at frame 2 (its first frame a still warm-up at frame 2)."""
     scene = build_scene(False, mode="RESTIR_BIASED")

@@ -43,7 +43,7 @@ def test_holdout_cuts_out_the_object(addon, mode):
     """A Holdout material leaves a transparent black hole where the camera sees
     it, with or without Film > Transparent."""
     import bpy
-    scene = fresh(16, 16, samples=4, mode=mode)
+    fresh(16, 16, samples=4, mode=mode)
     camera()
     world((0.5, 0.5, 0.5))
     mat = bpy.data.materials.new("Cut")

@@ -203,8 +203,8 @@ def test_package_contents(built_zip):
 
     for excluded in ("tests", "example_blends", "bench", "docs", "tools", "farm", "out", "build",
                      "dist", ".venv", ".venv-py311", ".git", ".gitignore", ".ci",
-                     ".blender_user", ".blender_user-py311", "Makefile", "requirements.txt",
-                     "requirements-py311.txt"):
+                     ".blender_user", ".blender_user-py311", "Makefile", "pyproject.toml",
+                     "requirements.txt", "requirements-py311.txt"):
         assert excluded not in tops, excluded
     assert not [n for n in names if "__pycache__" in n or n.endswith((".pyc", ".blend", ".blend1"))]
 

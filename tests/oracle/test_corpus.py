@@ -85,7 +85,7 @@ def test_corpus_camera_moves_and_nothing_else(addon, name):
 def test_corpus_exports_with_light(addon, name):
     import bpy
     from restir_gi.restir_addon.export import export_scene
-    scene = open_corpus(name)
+    open_corpus(name)
     core_scene, has_camera = export_scene(bpy.context.evaluated_depsgraph_get(), 320, 180)
     assert has_camera
     # Only what the engine supports: nothing approximated.

@@ -90,7 +90,6 @@ def test_motion_blur_can_fail(addon):
 def _moving_object_scene(width=64, height=48):
     """A still camera; a red box sliding 1.2 along x and turning 40 degrees
     over the frame (linear keyframes), shutter 0.5 around frame 1.5."""
-    import bpy
     from support.addon_util import add_mesh
     from support.blender_util import diffuse_material
     scene = _scene(width, height, shutter=0.5)

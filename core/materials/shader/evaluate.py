@@ -192,7 +192,7 @@ class CompiledShader:
                 try:
                     with np.errstate(all="ignore"):
                         out = fn(Inputs(values, n, self), geom, n, self) or {}
-                except Exception as exc:   # a node must never fail the render
+                except Exception as exc:   # noqa: BLE001 -- a node must never fail the render
                     self.warn_once(("error", n.kind),
                                    f"node '{n.name or n.kind}' failed ({type(exc).__name__}: {exc}); "
                                    f"it gives its default outputs")

@@ -87,7 +87,6 @@ def test_flat_non_planar_faces_shade_by_each_triangle(addon):
     """A mesh of flat faces only shades each triangle by its own normal, as
     Cycles does (a non-planar quad shows its crease); once a face is smooth
     the corner normals are Blender's (the flat quad's the polygon's)."""
-    import bpy
     fresh()
     ob = add_mesh("bent", [(-1, -1, 0), (1, -1, 0), (1, 1, 1.5), (-1, 1, 0)], [[0, 1, 2, 3]])
     s = export(addon)

@@ -366,7 +366,7 @@ def test15_no_datablock_is_removed_while_rendering(bpy_env):
     n_images = len(bpy.data.images)
     cache = bpy_env.cache()
     with images.rendering():
-        k1, k2 = cache.key(img, node.image_user, 1), cache.key(img, node.image_user, 2)
+        _, k2 = cache.key(img, node.image_user, 1), cache.key(img, node.image_user, 2)
         cache.key(udim)
         kept = [im for im in bpy.data.images if im.name.startswith(images.TEMPORARY)]
         assert len(kept) == 3 and len(bpy.data.images) == n_images + 3

@@ -83,7 +83,6 @@ def _particle_hair(show_emitter=True, children=0):
     """A plane emitting 60 hair strands (Render As Path), radius 0.02 at the
     root tapering to a closed tip, slightly bent by a gravity-free hair
     shape; both share the plane's Diffuse material."""
-    import bpy
     from support.addon_util import add_mesh, rect
     from support.blender_util import diffuse_material
     ob = add_mesh("Furry", *rect(-1.2, 1.2, -1.2, 1.2, z=0.01), mat=diffuse_material("Fur", (0.9, 0.5, 0.2)))

@@ -40,7 +40,7 @@ def _render_animation(addon, scene, tmp_path, name):
 
 
 @pytest.mark.parametrize("persistent", [False, True], ids=["compare", "persistent"])
-def test_every_edit_between_frames_is_seen(addon, reports, tmp_path, edits_handler, persistent):
+def test_every_edit_between_frames_is_seen(addon, reports, tmp_path, edits_handler, persistent):  # noqa: F811
     import bpy
     scene = build_scene(persistent)
     addon.restir_addon.state.clear()
@@ -65,7 +65,6 @@ def test_every_edit_between_frames_is_seen(addon, reports, tmp_path, edits_handl
 def test_camera_and_object_motion_read_no_mesh(addon, reports, tmp_path):
     """Frames where only the camera and an object's matrix change read no mesh
     data and build no new static Embree scene."""
-    import bpy
     for persistent in (False, True):
         scene = fresh(24, 16, samples=1, mode="RESTIR_BIASED")
         scene.restir_gi.warmup_frames = 1

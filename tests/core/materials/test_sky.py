@@ -14,7 +14,7 @@ import pytest
 from restir_gi.core.lights.environment import Environment
 from restir_gi.core.materials.shader import sky_scattering as scattering
 from restir_gi.core.materials.shader.nodes_spectrum import XYZ_TO_REC709
-from restir_gi.core.materials.shader.sky import ScatteringSky, normalised_sun, sky_model
+from restir_gi.core.materials.shader.sky import normalised_sun, sky_model
 
 trapezoid = getattr(np, "trapezoid", None) or np.trapz     # numpy 2 renamed it, then removed trapz
 
