@@ -2,7 +2,7 @@
 space, mirrored objects, modifiers, instancing (collections, vertices,
 geometry nodes), curves and text, render visibility and per-object ray
 visibility, each checked against values computed here from the numbers the
-scene was built with (never against the exporter's own helpers). Lights:
+scene was built with (never against the exporter's own functions). Lights:
 test_addon_lights.py; the camera: test_addon_camera.py; materials:
 test_addon_materials.py.
 

@@ -2,7 +2,7 @@
 defines them, Normalize off and exposure, temperature and spread, lights of
 zero size or without shadows, light node trees and Light Falloff, negative
 power; each checked against values computed here from the numbers the scene
-was built with (never against the exporter's own helpers).
+was built with (never against the exporter's own functions).
 
 Every test starts from an empty factory file (export_util.fresh).
 """
