@@ -150,7 +150,7 @@ def test_a_failing_stage_is_named_in_the_report(addon, reports, tmp_path, monkey
     it came from."""
     def broken(*args, **kwargs):
         raise IndexError("index 7 is out of bounds")
-    monkeypatch.setattr(addon.core.restir, "spatial_resample", broken)
+    monkeypatch.setattr(addon.core.restir.frame, "spatial_resample", broken)
     scene = _build("several_materials", mode)
     with pytest.raises(RuntimeError):       # Blender's operator raises on an error report
         render_exr(scene, tmp_path / "frame.exr", multilayer=True)

@@ -50,14 +50,14 @@ def test04_a_failing_material_graph_names_its_material(monkeypatch):
 def test05_a_failing_stage_is_named_in_the_frame(monkeypatch):
     """An exception inside a ReSTIR frame's pass names its stage, through the
     workers (threads here)."""
-    import restir_gi.core.restir as restir
+    import restir_gi.core.restir.frame as frame
     from restir_gi.core import RenderContext
     from restir_gi.core.restir import ReSTIRGI, ReSTIRSettings
     from support.scenes import cornell_box
 
     def broken(*args, **kwargs):
         raise FloatingPointError("no")
-    monkeypatch.setattr(restir, "spatial_resample", broken)
+    monkeypatch.setattr(frame, "spatial_resample", broken)
     ctx = RenderContext.build(cornell_box("area", 8, 8))
     try:
         with pytest.raises(FloatingPointError) as info:
