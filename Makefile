@@ -8,7 +8,8 @@
 #                    .venv, requirements.txt
 #   py311            bpy 5.0.1, Python 3.11, numpy 1.26: Blender 4.2 LTS to 5.0
 #                    .venv-py311, requirements-py311.txt
-# e.g. `make test` (whole suite, current LTS), `make LINE=py311 test`,
+# e.g. `make test` (whole suite, current LTS), `make test-fast` (without
+# the tests marked slow), `make LINE=py311 test`,
 # `make test-py311` (the 3.11 line's packaging, install and render tests,
 # `make LINE=py311 test-subset`), `make lint` (ruff, configured in
 # pyproject.toml; installed into the environment when missing).
@@ -58,7 +59,7 @@ EXT_SOURCES := __init__.py blender_manifest.toml \
 # Keeps Blender away from the user's own configuration (~/.config/blender).
 export BLENDER_USER_RESOURCES := $(CURDIR)/$(USER_DIR)
 
-.PHONY: all venv build render test test-subset test-py311 e2e lint clean distclean
+.PHONY: all venv build render test test-fast test-subset test-py311 e2e lint clean distclean
 
 all: build
 
@@ -85,6 +86,12 @@ render: $(STAMP) $(ZIP)
 
 test: $(STAMP)
 	$(PY) -m pytest -q $(PYTEST_ARGS) tests
+
+# The loop to run after each edit: unit and statistical tests without the
+# ones marked slow (the Cycles comparisons, whole-animation and packaging
+# tests, the heaviest statistical ones).
+test-fast: $(STAMP)
+	$(PY) -m pytest -q -m "not slow" $(PYTEST_ARGS) tests
 
 test-subset: $(STAMP)
 	$(PY) -m pytest -q $(PYTEST_ARGS) $(SUBSET_TESTS)

@@ -3,7 +3,16 @@
 
 def pytest_configure(config):
     config.addinivalue_line(
-        "markers", "slow: takes more than a minute (deselect with -m 'not slow')")
+        "markers", "slow: takes seconds or more; make test-fast leaves it out (-m 'not slow')")
+
+
+def pytest_collection_modifyitems(config, items):
+    """The Cycles comparisons (tests/oracle/) render both engines and the
+    real-window tests (tests/e2e/) start Blender: all slow."""
+    slow = [Path(__file__).parent / name for name in ("oracle", "e2e")]
+    for item in items:
+        if any(folder in Path(item.fspath).parents for folder in slow):
+            item.add_marker("slow")
 
 
 import importlib.util  # noqa: E402

@@ -20,6 +20,8 @@ from support.addon_util import assert_valid
 from restir_gi.core.camera.film import read_exr
 from support.animated_scene import build_scene, edits_handler  # noqa: F401  (fixture)
 
+pytestmark = pytest.mark.slow      # animations rendered frame after frame with warm-ups
+
 
 def _render(scene, tmp_path, name, first, last, scene_start=1):
     """Frames first..last as one animation job; the scene's own range starts

@@ -130,6 +130,7 @@ def _build(kind, mode):
     return scene
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("mode", MODES)
 @pytest.mark.parametrize("kind", SCENES)
 def test_real_like_scene_renders(addon, reports, tmp_path, kind, mode):

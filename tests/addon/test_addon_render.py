@@ -410,6 +410,7 @@ def test_camera_cut_restarts_reuse(addon, reports, tmp_path):
     assert not jumped(a, b, 10.0) and jumped(a, b, 0.1) and jumped(a, Camera(lens=120.0), 10.0)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("mode", ["PATH", "RESTIR_BIASED"])
 def test_render_region(addon, reports, mode):
     """Output > Render Region: Blender's result is the region's size; the

@@ -58,6 +58,7 @@ def render(addon, scene, tmp_path, threads):
     return [read_exr(str(tmp_path / f"t{threads}_{f:04d}.exr")) for f in range(1, 7)], pids
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("persistent", [False, True])
 @pytest.mark.parametrize("mode", MODES)
 def test_two_workers_render_the_frames_of_one(addon, reports, tmp_path, mode, persistent):

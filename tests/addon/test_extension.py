@@ -24,6 +24,8 @@ import zipfile
 
 import pytest
 
+pytestmark = pytest.mark.slow      # renders through whole Blender processes
+
 REPO_ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), "..", ".."))
 TOOLS = os.path.join(REPO_ROOT, "tools")
 

@@ -32,6 +32,8 @@ import time
 import numpy as np
 import pytest
 
+pytestmark = pytest.mark.slow      # renders through whole Blender processes
+
 REPO_ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), "..", ".."))
 TOOLS = os.path.join(REPO_ROOT, "tools")
 EXAMPLE = os.path.join(REPO_ROOT, "example_blends", "room_animated.blend")

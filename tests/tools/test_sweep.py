@@ -11,6 +11,8 @@ import textwrap
 
 import pytest
 
+pytestmark = pytest.mark.slow      # renders through whole Blender processes
+
 REPO_ROOT = os.path.abspath(os.path.join(os.path.dirname(__file__), "..", ".."))
 SWEEP = os.path.join(REPO_ROOT, "bench", "sweep.py")
 SWEEP_RENDER = os.path.join(REPO_ROOT, "bench", "sweep_render.py")

@@ -164,6 +164,7 @@ def test_world_colour_times_strength(addon):
     assert s.environment is not None and s.environment.sun_pmf == 0 and s.warnings == []
 
 
+@pytest.mark.slow
 def test_materials_showcase_exports_and_renders(addon, tmp_path):
     """The bundled materials example (example_blends/make_materials.py):
     textures, a normal map, glass, an alpha card and an HDRI world, all read

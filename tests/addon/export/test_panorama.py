@@ -67,6 +67,7 @@ def _pano_camera(**props):
                   type="PANO", clip_start=0.05, **props)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("case", list(CASES))
 def test_panorama_matches_cycles(addon, case):
     from support.addon_util import fresh

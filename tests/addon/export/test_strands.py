@@ -117,6 +117,7 @@ def test_wavy_hair_follows_the_spline(addon):
     _compare(scene, "wavy hair", max_chi=12.0)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("show_emitter,children", [(True, 0), (False, 0), (True, 6)])
 def test_particle_hair_matches_cycles(addon, show_emitter, children):
     """Particle hair (the strands read through ParticleSystem.co_hair, with

@@ -1,4 +1,4 @@
-"""Progressive refinement of the rendered viewport (viewport_progress.py):
+"""Progressive refinement of the rendered viewport (restir_addon/viewport/progress.py):
 the stages of a still view (moving, refining, sampling, done), the
 resolution steps that keep what the coarser frames learnt, the sample limit,
 convergence, and the denoiser's start sample."""
@@ -7,6 +7,7 @@ import dataclasses
 import importlib
 
 import numpy as np
+import pytest
 
 from support.viewport_util import build_scene, new_session
 
@@ -109,6 +110,7 @@ def _mean_frames(session, frames):
     return out
 
 
+@pytest.mark.slow
 def test04_resolution_step_keeps_the_image(vp, addon):
     """A step from 1/2 to full resolution carries the running means: the
     image keeps its mean, and right after the step it is nearer a converged

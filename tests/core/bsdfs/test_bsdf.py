@@ -103,6 +103,7 @@ CASES = [(name, c, which) for name in NAMES for c in COS_WO
          for which in (["normal", "mirror"] if name in SHARP else ["normal"])]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name,cos_wo,which", CASES)
 def test02_sample_matches_pdf_chi2(name, cos_wo, which, rng):
     wo = direction(cos_wo)

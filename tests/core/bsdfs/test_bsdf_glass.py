@@ -217,6 +217,7 @@ def _domain(wo, eta, which):
     return log_spherical_domain(axis, max_angle=0.9 * abs(math.asin(axis[2]))), (28, 24)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("alpha,eta,cos_wo,which", CHI2)
 def test04_sample_matches_pdf_chi2(alpha, eta, cos_wo, which, rng):
     wo = direction(cos_wo)

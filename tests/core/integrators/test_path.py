@@ -72,6 +72,7 @@ def test03_closed_box_few_bounces(max_bounces):
             assert (np.abs(mean - box_radiance(a, le, other)) > 6 * err).any()
 
 
+@pytest.mark.slow
 def test04_closed_box_many_bounces_with_russian_roulette():
     """Far past the roulette threshold the sum reaches Le / (1 - a)."""
     a, le = (0.6, 0.8, 0.4), (1.0, 1.0, 1.0)
@@ -193,6 +194,7 @@ def test11_no_nan_from_lights_touching_surfaces():
     assert np.isfinite(img).all() and img.max() > 0
 
 
+@pytest.mark.slow
 def test12_pixel_positions_over_samples_are_spread():
     """A pixel's pixel-filter positions over a render's samples follow a
     rotated R2 sequence (as Cycles' Sobol pattern): at the pixels a bright

@@ -186,6 +186,7 @@ def test_emitters_facing_away_are_chosen_by_power_alone(rng):
     assert below[0] > 3 * share[0] / DEFENSIVE     # over 3x what its power alone gives it
 
 
+@pytest.mark.slow
 def test_nee_with_spots_and_panels_is_unbiased(rng):
     rows, floor = spots_and_panels(rng)
     tri = np.int32([[0, 1, 2], [0, 2, 3]])

@@ -328,6 +328,7 @@ def bsdf_rays(scene, ls, p, n, rng, count, mis, accel):
     return val
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", sorted(HITTABLE))
 def test09_mis_of_nee_and_bsdf_sampling(name, rng):
     rows, tri = HITTABLE[name]()

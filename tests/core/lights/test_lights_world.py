@@ -90,6 +90,7 @@ def test01_world_is_one_more_light(rng):
     assert same.mean() > 0.999
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("world", ["map", "constant"])
 def test02_world_nee_and_mis_match_quadrature(world, rng):
     """NEE alone, and NEE plus escaping BSDF rays both weighted by MIS (the

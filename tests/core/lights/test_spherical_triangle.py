@@ -123,6 +123,7 @@ def _irradiance_over_pi(lights, p, nrm, rng):
     return np.where(s.pdf > 0, s.radiance[:, 0] * cos / np.where(s.pdf > 0, s.pdf, 1.0), 0.0) / np.pi, s
 
 
+@pytest.mark.slow
 def test04_next_event_estimation_in_an_emitting_box(rng, monkeypatch):
     """Every wall of a box emitting Le everywhere receives irradiance pi Le:
     NEE gives it at points on all six walls (the ceiling's points lie in the

@@ -75,6 +75,7 @@ def test02_thin_single_scattering_closed_form():
     assert (table[:129] == 0).all()          # the ground is black in the table
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("sky_type", ["MULTIPLE_SCATTERING", "SINGLE_SCATTERING"])
 def test03_sun_disc_irradiance(sky_type):
     """The disc's irradiance at normal incidence is its centre radiance times

@@ -154,6 +154,7 @@ def test04_running_mean_and_its_cap():
 
 # --- (2) estimators ----------------------------------------------------------------------
 
+@pytest.mark.slow
 def test05_unbiased_still_matches_path_tracing(ctx, reference):
     """A still in the unbiased mode (the mean of its warm-up frames, the first
     ones weighted less) has the path tracer's mean, with the filter on."""
@@ -165,6 +166,7 @@ def test05_unbiased_still_matches_path_tracing(ctx, reference):
     assert_same_mean(np.stack(runs).astype(np.float64), reference, "unbiased still, 8 frames")
 
 
+@pytest.mark.slow
 def test06_several_frames_per_frame_match_path_tracing(ctx, reference):
     """Animation frames after the first, with three frames of resampling each
     (samples = 3), keep the path tracer's mean in the unbiased mode."""
@@ -178,6 +180,7 @@ def test06_several_frames_per_frame_match_path_tracing(ctx, reference):
     assert_same_mean(np.stack(runs).astype(np.float64), reference, "unbiased, 3 frames per frame")
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("mode", [BIASED, UNBIASED])
 def test07_still_error_falls_as_warmup_grows(ctx, reference, mode):
     """The warm-up frames are not wasted: four times as many halve the error at least."""
@@ -228,6 +231,7 @@ def glossy_box():
     return dataclasses.replace(scene, materials=Materials.from_list(mats))
 
 
+@pytest.mark.slow
 def test10_glossy_unbiased_matches_path_tracing():
     """Glossy lobes take their indirect light from each frame's own sample and
     the diffuse lobe from the reservoirs: together still the path tracer's mean."""
@@ -320,6 +324,7 @@ def test13_edges_keep_their_coverage_on_a_moving_view(monkeypatch):
     assert flicker(with_edges) < 0.85 * flicker(without)     # (0.69-0.73 over seeds)
 
 
+@pytest.mark.slow
 def test14_depth_of_field_still_matches_path_tracing():
     """A camera with depth of field (lens rays jittered per frame, history
     carried on a still view): the unbiased still has the path tracer's blur

@@ -85,6 +85,7 @@ def direct_runs(ctx, gb, counts, runs):
                      for f in range(runs)]).astype(np.float64)
 
 
+@pytest.mark.slow
 def test04_stratified_samples_are_unbiased_and_better_than_independent(box):
     ctx, gb = box
     one = direct_runs(ctx, gb, 1, 1024)
@@ -117,6 +118,7 @@ def test05_counts_per_pixel_mix(box):
     assert not np.allclose(d_one, d_many)
 
 
+@pytest.mark.slow
 def test06_light_samples_near_an_emitter_count_in_the_mis_weights():
     """On a wall lit by an emissive cube a few centimetres away, where BSDF
     rays find the cube often, 16 light samples a point are weighed against
@@ -143,6 +145,7 @@ def test06_light_samples_near_an_emitter_count_in_the_mis_weights():
     assert ratio < 0.15
 
 
+@pytest.mark.slow
 def test07_a_stream_of_frames_spreads_its_light_samples(box):
     """Along an image stream (stream_index: the frames of a still) each
     pixel's light samples follow its scrambled sequences: the mean of 16

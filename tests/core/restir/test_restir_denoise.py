@@ -263,6 +263,7 @@ def test08_holdouts_stay_cut_out():
     assert (out.color[~hole].max(axis=1) > 0).mean() > 0.9
 
 
+@pytest.mark.slow
 def test09_unbiased_mean_is_kept(ctx, reference):
     """Unbiased stills on a static scene, over seeds: the temporal part (the
     image before the filter) has the path tracer's mean, per image and per

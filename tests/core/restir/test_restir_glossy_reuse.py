@@ -126,6 +126,7 @@ def test02_without_neighbours_it_is_the_pixel_own_estimate(ctx):
     np.testing.assert_allclose(alone, own, rtol=2e-3, atol=1e-6)
 
 
+@pytest.mark.slow
 def test03_reuse_keeps_the_mean(estimates):
     """Unbiased: the reused estimate's mean is the own estimate's, on the
     whole image and on every block (z-tests)."""
@@ -143,6 +144,7 @@ def test04_reuse_lowers_the_variance(estimates):
     assert ratio > 1.4
 
 
+@pytest.mark.slow
 def test05_weights_that_do_not_sum_to_one_are_caught(ctx, monkeypatch):
     """The test above can fail: pairs weighed as two techniques each (p_j +
     p_c instead of K p_j + p_c) count the neighbours' samples K times over."""
@@ -175,6 +177,7 @@ def test06_frames_are_the_same_on_two_workers(threads):
         parallel.close()
 
 
+@pytest.mark.slow
 def test07_whole_frames_keep_the_mean_of_frames_without_reuse():
     """Whole unbiased frames (temporal and spatial reuse, accumulation): the
     same seeds with and without path reuse differ only in the glossy lobe's

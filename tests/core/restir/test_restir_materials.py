@@ -72,6 +72,7 @@ def test01_the_scene_has_glass_and_texture(setup):
     assert (mean > 0.01).mean() > 0.9
 
 
+@pytest.mark.slow
 def test02_unbiased_matches_path_tracing(setup):
     ctx, ref = setup
     out = []
@@ -105,6 +106,7 @@ def metal_box_scene():
     return scene
 
 
+@pytest.mark.slow
 def test03_glossy_sample_paths_count_a_glossy_bounce():
     """The path from a sample point counts the sample ray as a bounce of the
     kind of lobe that drew it, as the path tracer does: from a metal, a

@@ -101,6 +101,7 @@ def test_a_moving_shadow_falls_where_the_occluder_is():
     assert d_anim[inside].mean() < 0.05 * lit, d_anim[inside].mean() / lit
 
 
+@pytest.mark.slow
 def test_light_on_a_moving_object_follows_it():
     """The indirect light on a card sliding toward a lit patch of floor comes
     close to that of a still render of its last pose: its reservoirs'
@@ -207,6 +208,7 @@ def shadow_lag(settings, positions):
 LAG_POSITIONS = list(np.linspace(-1.2, 0.6, 12))
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("denoise", [False, True])
 def test_a_moving_shadow_follows_within_a_frame_or_two(denoise):
     """The card's shadow on the floor, in the last frame of a slide, lies

@@ -185,6 +185,7 @@ def fence():
     ctx.close()
 
 
+@pytest.mark.slow
 def test05_unbiased_spatial_reuse_alone_keeps_the_mean(fence):
     """Spatial reuse without temporal reuse, unbiased, where neighbours'
     samples are often hidden from the pixel: the mean of independent runs
@@ -195,6 +196,7 @@ def test05_unbiased_spatial_reuse_alone_keeps_the_mean(fence):
     assert_same_mean(runs, ref, "unbiased, spatial reuse alone")
 
 
+@pytest.mark.slow
 def test06_without_visibility_in_the_targets_the_mean_is_off(fence, monkeypatch):
     """The power of test05: with the pairwise MIS targets' visibility rays
     answered 'visible' (and so the chosen sample taken as seen), hidden

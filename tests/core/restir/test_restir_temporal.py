@@ -373,6 +373,7 @@ def test11_validation_traces_shared_samples_once():
     assert rays2 - rays1 < rays1 - rays0
 
 
+@pytest.mark.slow
 def test10_unbiased_merge_of_several_initial_samples_keeps_the_mean():
     """A frame of several initial samples (settings.samples) streams them
     into one reservoir of M candidates; the unbiased merge with the history

@@ -72,16 +72,19 @@ def test01_reference_is_lit(reference):
     assert math.sqrt(reference.var_of_mean.sum()) / reference.mean.sum() < 0.005
 
 
+@pytest.mark.slow
 def test02_unbiased_without_reuse_matches_path_tracing(ctx, reference):
     runs = no_reuse_runs(ctx, 4 * RUNS)
     assert_same_mean(runs, reference, "unbiased, no reuse")
 
 
+@pytest.mark.slow
 def test03_unbiased_matches_path_tracing(ctx, reference):
     runs = restir_runs(ctx, RUNS, mode=UNBIASED)
     assert_same_mean(runs, reference, "unbiased")
 
 
+@pytest.mark.slow
 def test04_biased_has_far_less_variance(ctx, reference):
     """Mean per-pixel variance over runs against path tracing at 1 spp (with
     one NEE sample for the direct light too, so only the reuse differs)."""
@@ -94,6 +97,7 @@ def test04_biased_has_far_less_variance(ctx, reference):
     assert abs(runs.mean() / reference.mean.mean() - 1.0) < 0.1
 
 
+@pytest.mark.slow
 def test05_unbiased_with_the_pixel_filter_is_within_one_percent():
     """With the pixel filter on, visible points move every frame, so the
     history often cannot hold this frame's new sample (temporal.py weighs the
@@ -116,6 +120,7 @@ def test05_unbiased_with_the_pixel_filter_is_within_one_percent():
     assert runs.max() < 50 * ref
 
 
+@pytest.mark.slow
 def test06_unbiased_spatial_reuse_lowers_variance():
     """Spatial reuse in the unbiased mode adds neighbours' samples to the
     temporal reservoir's: the indirect light's per-pixel variance over runs

@@ -98,6 +98,7 @@ def test02_reference_is_lit(setup):
     assert math.sqrt(var_of_mean.sum()) / mean.sum() < 0.01
 
 
+@pytest.mark.slow
 def test03_unbiased_without_reuse_matches_path_tracing(setup):
     world, ctx, ref = setup
     restir = ReSTIRGI()
@@ -107,6 +108,7 @@ def test03_unbiased_without_reuse_matches_path_tracing(setup):
     assert_same_mean(runs.astype(np.float64), ref, f"{world}, unbiased, no reuse")
 
 
+@pytest.mark.slow
 def test04_unbiased_with_reuse_matches_path_tracing(setup):
     """Sky samples reused at other pixels keep their share: the mean stays."""
     world, ctx, ref = setup
@@ -120,6 +122,7 @@ def test04_unbiased_with_reuse_matches_path_tracing(setup):
     assert_same_mean(np.stack(out).astype(np.float64), ref, f"{world}, unbiased")
 
 
+@pytest.mark.slow
 def test05_sky_samples_in_the_reservoirs_match_path_tracing(setup):
     """Without sky rays the diffuse lobe's world light goes through the
     reservoirs as sky samples, reused at other pixels: the mean stays."""

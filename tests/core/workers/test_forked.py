@@ -149,6 +149,7 @@ def contexts():
     two.close()
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("mode", [BIASED, UNBIASED])
 def test07_restir_frames_of_a_twin_loop_are_those_of_one_process(contexts, mode):
     """A still's warm-up and the frames that follow it (render_restir's loop)
@@ -218,6 +219,7 @@ def test10_a_loop_inside_a_twin_loop_keeps_its_roles(workers):
     assert roles == (True, True) and child != os.getpid() and gone(child)
 
 
+@pytest.mark.slow
 def test11_the_split_follows_where_the_time_goes(workers):
     """Rows of the upper half cost more: after a few passes the parent (lower
     half) takes more than half of the rows, and every pass is still whole."""
