@@ -1,5 +1,5 @@
 #!/usr/bin/env python3
-"""Tabulate the sheen lobe of core/bsdfs/sheen.py: writes ``core/sheen_ltc.npy``.
+"""Tabulate the sheen lobe of core/bsdfs/sheen.py: writes ``core/bsdfs/sheen_ltc.npy``.
 
 The model is the one Cycles' Principled sheen approximates (Zeltner, Burley
 and Chiang 2022, "Practical Multiple-Scattering Sheen Using Linearly
@@ -148,7 +148,7 @@ def main():
         print(f"roughness {rough[i]:.3f}: R {table[i, 0, 2]:.3f}..{table[i, -1, 2]:.3f} "
               f"a {table[i, :, 0].min():.3f}..{table[i, :, 0].max():.3f} "
               f"b {table[i, :, 1].min():.3f}..{table[i, :, 1].max():.3f}", flush=True)
-    path = pathlib.Path(__file__).resolve().parent.parent / "core" / "sheen_ltc.npy"
+    path = pathlib.Path(__file__).resolve().parent.parent / "core" / "bsdfs" / "sheen_ltc.npy"
     np.save(path, table.astype(np.float32))
     print(path.name)
 

@@ -29,7 +29,7 @@ def is_panorama(camera):
 
 def _full_size(camera, width, height):
     """(x0, y0, W, H): where a width x height film lies in the full image
-    (a render region's camera carries its place, core.camera.crop)."""
+    (a render region's camera carries its place, core.camera.projection.crop)."""
     region = getattr(camera, "pano_region", None)
     if region is None:
         return 0.0, 0.0, float(width), float(height)

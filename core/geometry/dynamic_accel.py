@@ -11,7 +11,7 @@ them back once they stop moving, so queries go back to a single scene.
 Queries take the nearer hit of the two scenes (the dynamic one is traced only
 up to the static hit) and OR their occlusion; prims are numbered as in the
 combined scene's triangle arrays, so ``DynamicAccel`` stands in for
-``core.accel.Accel`` in a ``RenderContext``.
+``core.geometry.accel.Accel`` in a ``RenderContext``.
 """
 
 import time

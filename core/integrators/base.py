@@ -89,7 +89,7 @@ def direct_light(ctx, surf, frame, seeds, bounce, mis=True, strategy_pdf=None, u
     splits the world's light between NEE and its reservoirs lobe by lobe).
     count: (N,) light samples each point takes, of which this is one: the
     MIS weights count them all (count x pdf) against the one BSDF sample.
-    media: core.media.Media whose transmittance the shadow rays carry.
+    media: core.integrators.media.Media whose transmittance the shadow rays carry.
     """
     n = len(surf)
     out = np.zeros((n, 3), np.float32)

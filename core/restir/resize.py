@@ -1,7 +1,7 @@
 """A ReSTIR GI image stream carried to another resolution of the same view.
 
 The viewport renders a still view coarse first and then finer (restir_addon's
-viewport_progress.py). Starting each finer resolution from empty reservoirs
+viewport/progress.py). Starting each finer resolution from empty reservoirs
 and running means would throw away what the coarse frames learnt: the
 samples in the reservoirs, and each pixel's mean light. Here every pixel of
 the new resolution takes the state of the pixel of the old one that covers

@@ -1,5 +1,5 @@
 """The viewport session's render side: queued changes applied to the core
-scene between two frames (ViewportSession in viewport.py)."""
+scene between two frames (viewport/session.py)."""
 
 import numpy as np
 

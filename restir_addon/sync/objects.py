@@ -1,7 +1,7 @@
 """Reading Blender data for the viewport session: meshes, instances, the view.
 
 Plain functions from bpy data to arrays and core cameras, holding no state
-(ViewportSession in viewport.py decides what to read and keeps it): a mesh is
+(viewport/session.py decides what to read and keeps it): a mesh is
 read in object space and cleaned as core.make_scene cleans it, ``mesh_key``
 lets the instances of one mesh share it, ``placed_instance`` puts an instance in world
 space, and ``camera_from_region`` makes a core.Camera of the 3D view.

@@ -1,5 +1,5 @@
 """The viewport session's Blender side: what changed in the depsgraph, read
-into arrays and queued for the render side (ViewportSession in viewport.py).
+into arrays and queued for the render side (viewport/session.py).
 
 A transform-only change reads the new matrices (no mesh data), a geometry
 change re-reads that object's mesh only, material, light and world edits

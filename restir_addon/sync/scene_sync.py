@@ -1,14 +1,14 @@
 """A Blender scene kept as a core scene from one render to the next.
 
 ``SceneSync`` reads the depsgraph once, then only what changed (SceneReader in
-viewport_reader.py), queues it, and applies it between two frames to the
+reader.py), queues it, and applies it between two frames to the
 combined world-space arrays and the two-part Embree scene (SceneApplier in
-viewport_scene.py): a moved object gets a new transform and goes to the small
+applier.py): a moved object gets a new transform and goes to the small
 dynamic Embree scene, a deformed mesh is read again alone, a material, light
 or world edit never touches geometry.
 
-The viewport session (viewport.py) and animation renders (frame_scene.py)
-are both built on it. The queue is a hand-over between threads for the
+The viewport session (viewport/session.py) and animation renders
+(frame_scene.py) are both built on it. The queue is a hand-over between threads for the
 viewport (sync on Blender's thread, apply on the render thread); a final
 render reads and applies on one thread.
 """

@@ -11,9 +11,9 @@ the same way by the engine and by tests:
   camera and size (a resize never re-exports).
 - ``render_step(time_budget)`` applies the queued changes to the core scene
   (moved objects go to the small dynamic Embree scene of
-  ``core.dynamic_accel``) and renders one frame: a ReSTIR GI frame that keeps
+  ``core.geometry.dynamic_accel``) and renders one frame: a ReSTIR GI frame that keeps
   its reservoirs through camera and object motion, or one more path-traced
-  sample. A still view is refined progressively (viewport_progress.py):
+  sample. A still view is refined progressively (progress.py):
   coarse frames step to full resolution, carrying what they learnt, then
   frames are averaged until ``samples`` frames (0: no limit) or convergence.
 - ``start()`` runs ``render_step`` on a background thread (one per session),
@@ -26,13 +26,12 @@ sees a scene half-updated.
 
 Here: the session, its settings, the hand-over between the threads and the
 frame loop. The stages of a still view's refinement and the resolution of
-each frame are in viewport_progress.py (Progress, Refinement). What sync
-reads is in viewport_reader.py (SceneReader), how the render side applies
-it in viewport_scene.py (SceneApplier), the bookkeeping (Work, Update,
-Pending) in viewport_state.py. The reading of meshes and cameras is in
-viewport_sync.py, the combined world-space arrays of all objects in
-viewport_arrays.py; the engine's
-callbacks (``view_update``, ``view_draw``, ``free``) and the GPU drawing are
+each frame are in progress.py (Progress, Refinement). What sync reads is
+in ../sync/reader.py (SceneReader), how the render side applies it in
+../sync/applier.py (SceneApplier), the bookkeeping (Work, Update, Pending)
+in ../sync/state.py. The reading of meshes and cameras is in
+../sync/objects.py, the combined world-space arrays of all objects in
+../sync/arrays.py; the engine's callbacks (``view_update``, ``view_draw``, ``free``) and the GPU drawing are
 in draw.py.
 """
 
