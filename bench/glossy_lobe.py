@@ -82,14 +82,14 @@ def reuse(ctx, pixel_filter, seeds, offsets, diffuse=False):
     from restir_gi.core.integrators.base import shadow_rays
     from restir_gi.core.integrators.bounces import Bounces
     from restir_gi.core.restir.gbuffer import trace_rows
-    from restir_gi.core.restir.initial import COSINE, _source_pdf, initial_samples
+    from restir_gi.core.restir.initial import COSINE, InitialSampling, _source_pdf, initial_samples
     from restir_gi.core.sampling.warps import INV_PI
     from restir_gi.core.util.vectors import dot, to_local
     w, h = ctx.scene.width, ctx.scene.height
     runs = []
     for seed in seeds:
         gb = trace_rows(ctx, seed, 5, pixel_filter, True, 0, w * h, None)
-        res, _, _ = initial_samples(ctx, gb, seed, 5, 0, Bounces(12, 4, 4, 12))
+        res, _, _ = initial_samples(ctx, gb, seed, 5, 0, InitialSampling(Bounces(12, 4, 4, 12)))
         surf, fr, n = gb.surf, gb.frame, len(gb.index)
         row_of = np.full(w * h, -1)
         row_of[gb.index] = np.arange(n)

@@ -294,15 +294,37 @@ def _catmull_rom(t):
             0.5 * (t3 - t2))
 
 
-def accumulate(prev, footprint, direct, indirect, albedo, normal, cap, alpha=1.0, seen=0.0, refined=None,
-               direct_range=None, weight=1.0, moments=None):
+@dataclass
+class FrameValues:
+    """What one frame adds to the running means of N rows (accumulate)."""
+    direct: np.ndarray              # (N, 3) direct light of the visible point
+    indirect: np.ndarray            # (N, 3)
+    albedo: np.ndarray              # (N, 3)
+    normal: np.ndarray              # (N, 3) shading normal
+    alpha: object = 1.0             # (N,) coverage by geometry, or a scalar
+    seen: object = 0.0              # (N, 3) radiance seen directly, or a scalar
+    weight: float = 1.0             # this frame's weight in the mean, in frames
+    moments: np.ndarray = None      # (N, k) further values averaged alike (the
+                                    # denoiser's, denoise.frame_moments), or None
+
+    def rows(self):
+        """The values as Accumulation rows, count = weight."""
+        extra = 0 if self.moments is None else self.moments.shape[1]
+        new = np.empty((len(self.direct), COLUMNS + extra), np.float32)
+        new[:, 0:3], new[:, 3:6], new[:, 6:9], new[:, 9:12] = self.direct, self.indirect, self.albedo, self.normal
+        new[:, 12] = self.weight
+        new[:, 13] = self.alpha
+        new[:, 14:17] = self.seen
+        if self.moments is not None:
+            new[:, COLUMNS:] = self.moments
+        return new
+
+
+def accumulate(prev, footprint, values, cap, refined=None, direct_range=None):
     """This frame's Accumulation: the history over ``footprint`` (rows of the
-    part) blended with this frame's values, over at most ``cap`` frames.
-    prev: last frame's Accumulation (whole image) or None. weight: this
-    frame's weight in the mean, in frames (the count column sums them).
-    moments: (N, k) further values averaged alike, in columns after
-    COLUMNS (the denoiser's, denoise.frame_moments), or None; prev then
-    holds them too.
+    part) blended with this frame's ``values`` (FrameValues), over at most
+    ``cap`` frames. prev: last frame's Accumulation (whole image) or None;
+    with moments in values, prev holds them too.
 
     refined: silhouettes.RefinedSeen of the part's rows, or None. The
     radiance seen directly (seen) of its ``own`` pixels (the brightest
@@ -327,13 +349,8 @@ def accumulate(prev, footprint, direct, indirect, albedo, normal, cap, alpha=1.0
     them), and clipping every history to the neighbourhood's range darkens
     noisy direct light (many lights: the range of nine one-sample pixels
     often lies below their mean); a neighbourhood that agrees is neither."""
-    n = len(direct)
-    new = np.empty((n, COLUMNS + (0 if moments is None else moments.shape[1])), np.float32)
-    new[:, 0:3], new[:, 3:6], new[:, 6:9], new[:, 9:12], new[:, 12] = direct, indirect, albedo, normal, weight
-    new[:, 13] = alpha
-    new[:, 14:17] = seen
-    if moments is not None:
-        new[:, COLUMNS:] = moments
+    new = values.rows()
+    weight = values.weight
     if prev is None or cap <= 1 or footprint is None:
         return Accumulation(new)
     wts = footprint.weights

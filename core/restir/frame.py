@@ -25,7 +25,7 @@ whole-image arrays hold.
 import contextlib
 import threading
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -35,21 +35,21 @@ from ..sampling import samplers
 from ..util.errors import context
 from ..util.rows import gather, scale, scatter, scatter_add
 from ..util.vectors import luminance
-from .accumulation import (COLUMNS, Accumulation, accumulate, geometric_edges, light_range, previous_pixels,
-                           restart, same_view)
+from .accumulation import (COLUMNS, Accumulation, FrameValues, accumulate, geometric_edges, light_range,
+                           previous_pixels, restart, same_view)
 from .adaptive_direct import light_sample_counts, reprojected_hold, update_noise_hold
 from .boiling import boiling_filter
 from .denoise import MOMENTS, frame_moments
 from .denoise import denoise as svgf
 from .gbuffer import FirstPass, FrameImage, trace_rows
 from .glossy_reuse import GlossySamples, reuse_glossy
-from .initial import initial_samples
+from .initial import InitialSampling, initial_samples
 from .reservoirs import cap_history, finalize, merge
 from .settings import UNBIASED
 from .shading import carried_visibility, shade_indirect
 from .shift import target_at
 from .sky import pixel_shares, point_plan, visible_sky_light
-from .spatial import shared_terms, spatial_resample
+from .spatial import CarriedSpatial, SpatialReuse, shared_terms, spatial_resample
 from .silhouettes import refine_edges
 from .temporal import FrameHistory, ObjectMotion, carry_with_objects, reproject, temporal_resample
 from .validation import validate
@@ -287,17 +287,15 @@ def _initial(s, part, counts, a, b):
     settings = s.settings
     per_frame = max(1, settings.samples)
     along = settings.sequences
-    initial, direct, glossy = initial_samples(s.ctx, part, settings.seed, s.frame, 0,
-                                              settings.max_bounces, settings.initial_sampling, counts,
-                                              own_surface_glossy=not s.path_reuse,
-                                              stream_index=s.index * per_frame if along else None,
-                                              sky_rays=s.sky_on)
+    first = InitialSampling(settings.max_bounces, settings.initial_sampling, counts,
+                            own_surface_glossy=not s.path_reuse, sky_rays=s.sky_on)
+    initial, direct, glossy = initial_samples(s.ctx, part, settings.seed, s.frame, 0, first,
+                                              stream_index=s.index * per_frame if along else None)
     reused = GlossySamples.of_range(part, initial) if s.path_reuse else None
+    more = replace(first, own_surface_glossy=True)
     for k in range(1, per_frame):
-        extra, d, g = initial_samples(s.ctx, part, settings.seed, s.frame, k, settings.max_bounces,
-                                      settings.initial_sampling, counts,
-                                      stream_index=s.index * per_frame + k if along else None,
-                                      sky_rays=s.sky_on)
+        extra, d, g = initial_samples(s.ctx, part, settings.seed, s.frame, k, more,
+                                      stream_index=s.index * per_frame + k if along else None)
         merge(initial, extra, extra.w_sum, extra.M, samplers.uniform(s.seeds[a:b], 10 + k))
         direct += d
         glossy += g
@@ -389,9 +387,10 @@ def _spatial(s, a, b):
         prev_spatial.age += 1
         prev_spatial.M[prev_spatial.age > settings.max_age] = 0
         prev_owner = gather(history.owners(spatial=True), q)
-    spatial, visible_own, from_prev = spatial_resample(
-        s.ctx, img, s.temporal, prev_spatial, prev_owner, s.seeds, settings.spatial_neighbors,
-        settings.spatial_radius, s.biased, rows=(a, b), shared=s.shared)
+    reuse = SpatialReuse(settings.spatial_neighbors, settings.spatial_radius, s.biased)
+    carried = None if prev_spatial is None else CarriedSpatial(prev_spatial, prev_owner)
+    spatial, visible_own, from_prev = spatial_resample(s.ctx, img, s.temporal, s.seeds, reuse, carried,
+                                                       rows=(a, b), shared=s.shared)
     known = None
     if s.carry and s.static and visible_own is None:
         known = carried_visibility(np.take(history.visibility, q), from_prev, prev_owner, img.p[a:b], spatial.x2)
@@ -435,11 +434,11 @@ def second_pass_rows(s, a, b):
                                         edges=None if s.edges is None else s.edges[a:b])
         moments = frame_moments(indirect, one.albedo[a:b]) if settings.denoise else None
         # (without accumulation: this frame's values, as a mean of one frame)
-        rows = accumulate(s.prev_acc, footprint, direct_total, indirect, one.albedo[a:b], img.n[a:b],
-                          settings.accumulate, one.alpha[a:b], seen,
+        values = FrameValues(direct_total, indirect, one.albedo[a:b], img.n[a:b], one.alpha[a:b], seen,
+                             settings.frame_weight, moments)
+        rows = accumulate(s.prev_acc, footprint, values, settings.accumulate,
                           None if s.refined is None else s.refined.rows(a, b),
-                          None if s.gate is None else s.gate.rows(a, b), settings.frame_weight,
-                          moments).data
+                          None if s.gate is None else s.gate.rows(a, b)).data
         s.shaded[a:b] = rows
     color = rows[:, 0:3] + rows[:, 3:6] + rows[:, 14:17]
     timings.spent("shading", t)

@@ -27,6 +27,7 @@ sparkle on metals that no number of frames averaged away. The glossy lobe's
 indirect light is this sample's own path-traced estimate, returned apart.
 """
 
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -130,25 +131,35 @@ def world_distance(scene):
 STREAM_SAMPLE = 0x57EA        # key of each pixel's scrambles of its stream sequences
 
 
-def initial_samples(ctx, gb, seed, frame, sample, max_bounces, sampling=COSINE, light_samples=1,
-                    own_surface_glossy=True, stream_index=None, sky_rays=False):
+@dataclass
+class InitialSampling:
+    """How initial_samples draws and estimates each pixel's sample."""
+    max_bounces: object             # bounces of the sample's path (int or integrators.bounces.Bounces)
+    sampling: str = COSINE          # the diffuse lobe's directions: COSINE or UNIFORM
+    light_samples: object = 1       # NEE samples of the direct light: one count for all,
+                                    # or one per visible point (gb.index order)
+    # False: the glossy light leaves out the samples on surfaces that the
+    # specular lobes of the points path reuse takes drew (glossy_reuse.py
+    # estimates those; sky samples stay, and so do those the diffuse lobe drew).
+    own_surface_glossy: bool = True
+    # True: the world's light on the diffuse lobe comes from sky rays (sky.py),
+    # so rays that escape are no samples of the reservoirs (they keep their
+    # glossy lobe's share).
+    sky_rays: bool = False
+
+
+def initial_samples(ctx, gb, seed, frame, sample, how, stream_index=None):
     """Reservoirs (one per pixel, empty where nothing was hit) holding each
     pixel's new sample; the direct light of each pixel (P, 3), estimated
-    with ``light_samples`` NEE samples averaged (each keeps its one-sample MIS
+    with ``how.light_samples`` NEE samples averaged (each keeps its one-sample MIS
     weight, so with the sample ray's own weight they still sum to one); and the
     indirect light of each pixel's glossy lobe (P, 3) from the sample's path.
-    light_samples: one count for all, or one per visible point (gb.index order).
-    own_surface_glossy False: the glossy light leaves out the samples on
-    surfaces that the specular lobes of the points path reuse takes drew
-    (glossy_reuse.py estimates those; sky samples stay, and so do those the
-    diffuse lobe drew).
-    stream_index: the sample's place in its image stream, whose first
-    bounce's uniforms then follow each pixel's sequences over the stream
-    (samplers.first_bounce_uniforms; else the seeds' own): a still's mean
-    of frames converges faster (docs/plan.md).
-    sky_rays: the world's light on the diffuse lobe comes from sky rays
-    (sky.py), so rays that escape are no samples of the reservoirs (they
-    keep their glossy lobe's share)."""
+    how: InitialSampling. stream_index: the sample's place in its image
+    stream, whose first bounce's uniforms then follow each pixel's sequences
+    over the stream (samplers.first_bounce_uniforms; else the seeds' own): a
+    still's mean of frames converges faster."""
+    max_bounces, sampling, light_samples = how.max_bounces, how.sampling, how.light_samples
+    own_surface_glossy, sky_rays = how.own_surface_glossy, how.sky_rays
     scene = ctx.scene
     n_pix = len(gb.valid)
     res = Reservoirs.empty(n_pix)

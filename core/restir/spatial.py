@@ -57,18 +57,31 @@ def shared_terms(temporal, biased):
     return reuse_weights(temporal) if biased else sample_luminance(temporal)
 
 
-def spatial_resample(ctx, gb, temporal, prev_spatial, prev_owner_p, seeds, k, radius, biased,
-                     rows=None, shared=None):
+class SpatialReuse(NamedTuple):
+    """How spatial_resample reuses neighbours."""
+    neighbors: int          # k neighbours per pixel
+    radius: float           # of the disk they are drawn in, pixels
+    biased: bool            # biased (W = w_sum / (M p_hat)) or unbiased (pairwise MIS) mode
+
+
+class CarriedSpatial(NamedTuple):
+    """Last frame's spatial reservoirs reprojected to a range of pixels."""
+    reservoirs: Reservoirs  # one per pixel of the range
+    owner_p: np.ndarray     # (n, 3) the visible points that held them
+
+
+def spatial_resample(ctx, gb, temporal, seeds, reuse, carried=None, rows=None, shared=None):
     """Spatial reservoirs of this frame; (unbiased mode) the visibility of each
     pixel's chosen sample from its own visible point, for final shading; and
     where the chosen sample is last frame's spatial reservoir's.
 
-    rows: the (start, stop) range of pixels to resample (all by default; a
-    worker's share), whose own arrays are sliced from the whole-image inputs;
-    neighbours come from the whole image. prev_spatial and prev_owner_p (last
-    frame's spatial reservoirs reprojected, and their visible points) are
-    given for those rows only. shared: shared_terms(temporal, biased), if the
-    caller has it (workers share one)."""
+    reuse: SpatialReuse. rows: the (start, stop) range of pixels to resample
+    (all by default; a worker's share), whose own arrays are sliced from the
+    whole-image inputs; neighbours come from the whole image. carried:
+    CarriedSpatial of those rows, or None. shared: shared_terms(temporal,
+    biased), if the caller has it (workers share one)."""
+    k, radius, biased = reuse
+    prev_spatial, prev_owner_p = carried if carried is not None else (None, None)
     a, b = rows if rows is not None else (0, len(gb.valid))
     w, h = gb.width, gb.height
     p_all, nrm_all, ng_all = gb.p, gb.n, gb.ng

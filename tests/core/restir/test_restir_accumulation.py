@@ -16,7 +16,7 @@ from restir_gi.core import Materials, RenderContext, RenderSettings, render_fram
 from restir_gi.core.camera.projection import PixelFilter
 from restir_gi.core.render import render_restir, settle_frames, still_frame_weight
 from restir_gi.core.restir import BIASED, UNBIASED, ReSTIRGI, ReSTIRSettings
-from restir_gi.core.restir.accumulation import STILL, Footprint, accumulate, previous_pixels
+from restir_gi.core.restir.accumulation import STILL, FrameValues, Footprint, accumulate, previous_pixels
 from restir_gi.core.restir.gbuffer import trace_gbuffer
 from restir_gi.core.util.vectors import luminance
 from support.scenes import cornell_box, look_at
@@ -128,26 +128,26 @@ def test04_running_mean_and_its_cap():
     same = Footprint.none(n)
     same.taps[:, 0], same.weights[:, 0] = np.arange(n), 1.0
     for k, v in enumerate(values):
-        acc = accumulate(acc, same if acc is not None else None, v, v, v, v, cap=4)
+        acc = accumulate(acc, same if acc is not None else None, FrameValues(v, v, v, v), cap=4)
         if k < 4:
             assert np.allclose(acc.direct, np.mean([x[0, 0] for x in values[:k + 1]]))
     assert np.allclose(acc.count, 4)
     # After the cap, each new frame has weight 1/4.
     assert np.allclose(acc.direct, 0.75 * (0.75 * 2.5 + 0.25 * 5) + 0.25 * 6)
-    lost = accumulate(acc, Footprint.none(n), values[0], values[0], values[0], values[0], cap=4)
+    lost = accumulate(acc, Footprint.none(n), FrameValues(*[values[0]] * 4), cap=4)
     assert np.allclose(lost.direct, 1.0) and np.allclose(lost.count, 1)
     # Half a pixel over: the mean of two pixels' histories.
     acc.data[:, 0:3] = np.arange(n, dtype=np.float32)[:, None]     # (direct is light + seen: a sum)
     half = Footprint.none(n)
     half.taps[:, 0], half.taps[:, 1] = np.arange(n), np.minimum(np.arange(n) + 1, n - 1)
     half.weights[:, :2] = 0.5
-    mid = accumulate(acc, half, values[0], values[0], values[0], values[0], cap=2)
+    mid = accumulate(acc, half, FrameValues(*[values[0]] * 4), cap=2)
     assert np.allclose(mid.direct[:-1, 0], 0.5 * (np.arange(n - 1) + 0.5) + 0.5)
     # Weighted frames (an unbiased still's first ones): the weighted mean, the
     # count summing the weights.
     acc, weights = None, (0.25, 0.5, 1.0, 1.0)
     for k, (v, wt) in enumerate(zip(values, weights)):
-        acc = accumulate(acc, same if acc is not None else None, v, v, v, v, cap=STILL, weight=wt)
+        acc = accumulate(acc, same if acc is not None else None, FrameValues(v, v, v, v, weight=wt), cap=STILL)
         expect = np.dot(weights[:k + 1], [x[0, 0] for x in values[:k + 1]]) / sum(weights[:k + 1])
         assert np.allclose(acc.direct, expect) and np.allclose(acc.count, sum(weights[:k + 1]))
 
@@ -268,10 +268,10 @@ def test11_catmull_rom_history_reads():
     fp.weights[0] = [wts[dx + 1] * (1.0 if dy == 0 else 0.0) for dx, dy in TAPS]
     img = np.zeros((6, 3), np.float32)
     img[3:] = 10.0
-    prev = accumulate(None, None, img, img, img, img, cap=8)
+    prev = accumulate(None, None, FrameValues(img, img, img, img), cap=8)
     prev.count[:] = 8
     zero = np.zeros((n, 3), np.float32)
-    out = accumulate(prev, fp, zero, zero, zero, zero, cap=8)
+    out = accumulate(prev, fp, FrameValues(zero, zero, zero, zero), cap=8)
     hist = out.direct[0, 0] * 8 / 7                      # undo the blend with this frame's 0
     assert 0.0 <= hist <= 10.0 and abs(hist - 5.0) < 1e-4
 

@@ -16,7 +16,7 @@ from restir_gi.core.camera.projection import PixelFilter
 from restir_gi.core.restir.adaptive_direct import (HOLD_FRAMES, light_sample_counts, neighbourhood_range,
                                          reprojected_hold, update_noise_hold)
 from restir_gi.core.restir.gbuffer import trace_gbuffer
-from restir_gi.core.restir.initial import initial_samples
+from restir_gi.core.restir.initial import InitialSampling, initial_samples
 from restir_gi.core.util.vectors import luminance
 from support.scenes import cornell_box, glow_by_wall
 
@@ -81,7 +81,7 @@ def box():
 
 def direct_runs(ctx, gb, counts, runs):
     """Luminance of the direct light of every pixel over independent frames, (runs, P)."""
-    return np.stack([luminance(initial_samples(ctx, gb, 11, f, 0, 0, light_samples=counts)[1])
+    return np.stack([luminance(initial_samples(ctx, gb, 11, f, 0, InitialSampling(0, light_samples=counts))[1])
                      for f in range(runs)]).astype(np.float64)
 
 
@@ -110,9 +110,9 @@ def test05_counts_per_pixel_mix(box):
     ctx, gb = box
     v = len(gb.index)
     mixed = np.where(np.arange(v) % 2 == 0, 1, 8)
-    d_mixed = initial_samples(ctx, gb, 4, 0, 0, 0, light_samples=mixed)[1][gb.index]
-    d_one = initial_samples(ctx, gb, 4, 0, 0, 0, light_samples=1)[1][gb.index]
-    d_many = initial_samples(ctx, gb, 4, 0, 0, 0, light_samples=8)[1][gb.index]
+    d_mixed = initial_samples(ctx, gb, 4, 0, 0, InitialSampling(0, light_samples=mixed))[1][gb.index]
+    d_one = initial_samples(ctx, gb, 4, 0, 0, InitialSampling(0, light_samples=1))[1][gb.index]
+    d_many = initial_samples(ctx, gb, 4, 0, 0, InitialSampling(0, light_samples=8))[1][gb.index]
     assert np.allclose(d_mixed[mixed == 1], d_one[mixed == 1])
     assert np.allclose(d_mixed[mixed == 8], d_many[mixed == 8])
     assert not np.allclose(d_one, d_many)
@@ -158,7 +158,7 @@ def test07_a_stream_of_frames_spreads_its_light_samples(box):
         out = []
         for r in range(96):
             seed = 100 + r
-            frames = [initial_samples(ctx, gb, seed, f, 0, 0, stream_index=f if stream else None)[1]
+            frames = [initial_samples(ctx, gb, seed, f, 0, InitialSampling(0), stream_index=f if stream else None)[1]
                       for f in range(16)]
             out.append(luminance(np.mean(frames, axis=0)))
         return np.array(out, np.float64)

@@ -17,7 +17,7 @@ from restir_gi.core.restir import UNBIASED, ReSTIRGI, ReSTIRSettings
 from restir_gi.core.restir import glossy_reuse
 from restir_gi.core.restir.gbuffer import FrameImage, trace_rows
 from restir_gi.core.restir.glossy_reuse import OFFSETS, GlossySamples, reuse_glossy
-from restir_gi.core.restir.initial import initial_samples
+from restir_gi.core.restir.initial import InitialSampling, initial_samples
 from restir_gi.core.util.vectors import luminance
 from support.scenes import Builder, cornell_box
 from support.restir_reference import z_limit
@@ -68,8 +68,8 @@ def first_pass(ctx, seed):
     scene = ctx.scene
     w, h = scene.width, scene.height
     gb = trace_rows(ctx, seed, 3, PixelFilter(0.0), True, 0, w * h, None)
-    _, _, everything = initial_samples(ctx, gb, seed, 3, 0, MAX_BOUNCES)
-    res, _, rest = initial_samples(ctx, gb, seed, 3, 0, MAX_BOUNCES, own_surface_glossy=False)
+    _, _, everything = initial_samples(ctx, gb, seed, 3, 0, InitialSampling(MAX_BOUNCES))
+    res, _, rest = initial_samples(ctx, gb, seed, 3, 0, InitialSampling(MAX_BOUNCES, own_surface_glossy=False))
     img = FrameImage(gb.valid, gb.depth, gb.object_id, gb.p, gb.n, gb.ng, w, h)
     return everything - rest, GlossySamples.of_range(gb, res), img
 

@@ -9,7 +9,7 @@ import pytest
 
 from restir_gi.core import Camera, Lights, Materials, RenderContext, make_scene
 from restir_gi.core.camera.projection import PixelFilter
-from restir_gi.core.restir.accumulation import COLUMNS, Accumulation, Footprint, accumulate
+from restir_gi.core.restir.accumulation import COLUMNS, Accumulation, FrameValues, Footprint, accumulate
 from restir_gi.core.restir.gbuffer import trace_gbuffer
 from restir_gi.core.restir.adaptive_direct import neighbourhood_range
 from restir_gi.core.restir.silhouettes import MAX_EDGE_SHARE, edge_pixels, mean_seen_directly, refine_edges
@@ -170,13 +170,13 @@ def test07_moving_view_holds_seen_history_under_the_ceiling(ctx):
     foot = Footprint.none(p)
     foot.taps[:, 0], foot.weights[:, 0] = np.arange(p), 1.0
     zeros = np.zeros((p, 3), np.float32)
-    moving = accumulate(prev, foot, zeros, zeros, zeros, zeros, 16, 1.0, seen, refined)
+    moving = accumulate(prev, foot, FrameValues(zeros, zeros, zeros, zeros, 1.0, seen), 16, refined)
     lum = luminance(moving.seen)
     # 4 frames of history and this one: at most the ceiling throughout.
     assert (lum <= refined.ceiling * (1 + 1e-4) + 1e-5).all()
     np.testing.assert_allclose(moving.seen[refined.own], seen[refined.own], rtol=1e-5)
     foot.exact = True
-    still = accumulate(prev, foot, zeros, zeros, zeros, zeros, 16, 1.0, seen, refined)
+    still = accumulate(prev, foot, FrameValues(zeros, zeros, zeros, zeros, 1.0, seen), 16, refined)
     np.testing.assert_allclose(still.seen, (4 * 100.0 + seen) / 5, rtol=1e-5)
 
 

@@ -20,7 +20,7 @@ from restir_gi.core.sampling import samplers
 from restir_gi.core.restir import UNBIASED
 from restir_gi.core.restir import spatial as spatial_module
 from restir_gi.core.restir.gbuffer import FrameImage
-from restir_gi.core.restir.spatial import shared_terms, spatial_resample
+from restir_gi.core.restir.spatial import SpatialReuse, shared_terms, spatial_resample
 from restir_gi.core.restir.reservoirs import Reservoirs
 from restir_gi.core.scene import LIGHT_POINT
 from support.scenes import Builder, look_at, quad
@@ -71,7 +71,7 @@ NO_RAYS = SimpleNamespace(accel=SimpleNamespace(poll=lambda: None))     # the bi
 
 def resample(ctx, img, temporal, biased=True, k=4, radius=16.0, rows=None, seed=3):
     seeds = samplers.path_seeds(seed, 0, np.arange(W * H), 0)
-    return spatial_resample(ctx, img, temporal, None, None, seeds, k, radius, biased, rows=rows,
+    return spatial_resample(ctx, img, temporal, seeds, SpatialReuse(k, radius, biased), rows=rows,
                             shared=shared_terms(temporal, biased))
 
 
