@@ -27,7 +27,7 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from bench_common import OUT, ROOT, captured_output, load_addon  # noqa: E402
+from bench_common import OUT, ROOT, captured_output, load_addon
 
 BLEND = ROOT / "example_blends" / "room_animated.blend"
 

@@ -25,7 +25,7 @@ import sys
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from bench_common import OUT, ROOT, load_addon, render_frames  # noqa: E402
+from bench_common import OUT, ROOT, load_addon, render_frames
 
 MODES = {"biased": "RESTIR_BIASED", "unbiased": "RESTIR_UNBIASED"}
 

@@ -21,7 +21,7 @@ import time
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from bench_common import OUT, ROOT, captured_output, load_addon  # noqa: E402
+from bench_common import OUT, ROOT, captured_output, load_addon
 
 BLEND = ROOT / "example_blends" / "room_indirect.blend"
 

@@ -19,7 +19,7 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from bench_common import ROOT, load_addon  # noqa: E402
+from bench_common import ROOT, load_addon
 
 
 class Recorder:

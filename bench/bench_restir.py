@@ -21,7 +21,7 @@ import time
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from bench_common import ROOT, export_blend, load_addon  # noqa: E402
+from bench_common import ROOT, export_blend, load_addon
 
 PASSES = ("gbuffer", "initial", "temporal", "spatial", "glossy", "shading", "denoise", "validation", "total")
 SETUPS = {"1": ("1", 1, False), "2": ("2 threads", 2, False), "twin": ("2 (twin process)", 2, True)}

@@ -34,8 +34,8 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "tests"))
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
-from bench_common import OUT, ROOT, load_addon  # noqa: E402
-from support.blender_util import Recorder  # noqa: E402
+from bench_common import OUT, ROOT, load_addon
+from support.blender_util import Recorder
 
 BLEND = ROOT / "example_blends" / "room_indirect.blend"
 TARGET_EDIT_S = 0.3     # issue 4: transform edit to next frame at 1/4 scale

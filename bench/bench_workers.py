@@ -23,7 +23,7 @@ import sys
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from bench_common import ROOT, load_addon, render_frames  # noqa: E402
+from bench_common import ROOT, load_addon, render_frames
 
 SCENES = ("room", "slit", "glossy", "courtyard", "emitters", "animated")
 FILES = {"animated": "room_animated.blend"}     # the others: corpus_<name>.blend

@@ -23,7 +23,7 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from bench_common import OUT, ROOT, captured_output, load_addon  # noqa: E402
+from bench_common import OUT, ROOT, captured_output, load_addon
 SCENES = [("room_animated", (1, 2, 3))] + [(f"corpus_{name}", (1,)) for name in
                                            ("room", "slit", "glossy", "courtyard", "emitters")]
 MODES = ("PATH", "RESTIR_BIASED", "RESTIR_UNBIASED")

@@ -79,11 +79,11 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from bench_common import OUT, ROOT, load_addon, luminance, render_frames  # noqa: E402
-import finished  # noqa: E402
-from finished import AUX, CYCLES_OIDN_SPP, Curve  # noqa: E402
-from equal_time_refs import REF_SECONDS, cycles, cycles_denoised, mse, reference, report  # noqa: E402
-from equal_time_table import lag_table, table  # noqa: E402
+from bench_common import OUT, ROOT, load_addon, luminance, render_frames
+import finished
+from finished import AUX, CYCLES_OIDN_SPP, Curve
+from equal_time_refs import REF_SECONDS, cycles, cycles_denoised, mse, reference, report
+from equal_time_table import lag_table, table
 
 SCENES = ("room", "slit", "glossy", "courtyard", "emitters")
 MODES = {"biased": "RESTIR_BIASED", "unbiased": "RESTIR_UNBIASED"}

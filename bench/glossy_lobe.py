@@ -31,7 +31,7 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from bench_common import ROOT, export_blend, load_addon  # noqa: E402
+from bench_common import ROOT, export_blend, load_addon
 
 LUM = np.array([0.2126, 0.7152, 0.0722])
 NEIGHBOURS = {"4 at 3 px": [(-3, 0), (3, 0), (0, -3), (0, 3)],

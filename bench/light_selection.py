@@ -28,10 +28,10 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
-from core.lights import light_grid  # noqa: E402
-from core.lights.light_set import LightSet  # noqa: E402
-from core import Materials  # noqa: E402
-from core.scene import LIGHT_AREA, LIGHT_POINT, LIGHT_SPOT, Lights, make_scene  # noqa: E402
+from core.lights import light_grid
+from core.lights.light_set import LightSet
+from core import Materials
+from core.scene import LIGHT_AREA, LIGHT_POINT, LIGHT_SPOT, Lights, make_scene
 
 SAMPLES = 20_000
 POINTS = 40

@@ -21,8 +21,8 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from bench_common import OUT, ROOT, load_addon, render_frames  # noqa: E402
-from equal_time import brightness, cycles, mse  # noqa: E402
+from bench_common import OUT, ROOT, load_addon, render_frames
+from equal_time import brightness, cycles, mse
 
 BLEND = ROOT / "example_blends" / "room_animated.blend"
 REF_SEED = 1234

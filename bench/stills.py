@@ -24,7 +24,7 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from bench_common import OUT, ROOT, load_addon, pin_camera  # noqa: E402
+from bench_common import OUT, ROOT, load_addon, pin_camera
 
 
 def still(ctx, settings, frames, seed):

@@ -36,7 +36,7 @@ import bpy
 
 # tools/real_blender.py copies tools/real_blender_driver.py beside this script.
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from real_blender_driver import OUT, grab, say, say_versions, step  # noqa: E402
+from real_blender_driver import OUT, grab, say, say_versions, step
 
 MODE = os.environ.get("REAL_MODE", "viewport")
 ENGINE = os.environ.get("REAL_ENGINE", "RESTIR_GI")

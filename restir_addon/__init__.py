@@ -6,9 +6,9 @@ if "bpy" in locals():  # Reload Scripts: drop every module of the extension, imp
     for _name in [n for n in sys.modules if n.startswith(_root + ".core") or n.startswith(__name__ + ".")]:
         del sys.modules[_name]
 
-import bpy  # noqa: E402, F401 (the mark of a reload, above)
+import bpy  # noqa: F401 (the mark of a reload, above)
 
-from . import engine, properties, state, ui  # noqa: E402
+from . import engine, properties, state, ui
 
 _modules = (properties, state, engine, ui)
 

@@ -215,7 +215,7 @@ def main(argv: list[str] | None = None) -> int:
     sys.path.insert(0, site_packages)
 
     t_start = time.perf_counter()
-    import bpy  # noqa: E402  (must follow the environment set-up above)
+    import bpy
 
     with install_lock(user_resources):
         module = install_or_enable(bpy, pkg_id, zip_path, user_resources)

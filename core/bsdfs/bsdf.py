@@ -158,8 +158,8 @@ def at_view(params, wo):
     # (the layer takes 0 x E = 0, and a zero F_avg keeps the boost at 1).
     need = (row_max(np.abs(f_avg)) > 0) | (params.layer_f0 != 0 if layered else False)
     rows = None if need.all() else np.nonzero(need)[0]
-    pick = (lambda v: v) if rows is None else (lambda v: np.take(v, rows))     # noqa: E731
-    spread = (lambda v: v) if rows is None else (lambda v: scatter(np.zeros(n, v.dtype), rows, v))  # noqa: E731
+    pick = (lambda v: v) if rows is None else (lambda v: np.take(v, rows))
+    spread = (lambda v: v) if rows is None else (lambda v: scatter(np.zeros(n, v.dtype), rows, v))
     a, b = albedo_terms(np.sqrt(pick(params.alpha)), pick(cos))
     if layered:
         lf0 = pick(params.layer_f0)

@@ -22,7 +22,7 @@ import bpy
 
 # tools/real_blender.py copies tools/real_blender_driver.py beside this script.
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from real_blender_driver import OUT, grab, say, say_versions, step  # noqa: E402
+from real_blender_driver import OUT, grab, say, say_versions, step
 
 RENDERED_AT = float(os.environ.get("REAL_RENDERED", "4"))
 F12_AT = float(os.environ.get("REAL_F12", "14"))

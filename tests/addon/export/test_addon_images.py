@@ -54,8 +54,8 @@ def bpy_env(addon, tmp_path):
         pass
     env = Env()
     env.bpy, env.dir, env.warnings = bpy, tmp_path, warnings
-    env.cache = lambda **kw: ImageCache(warnings.append, **kw)  # noqa: E731
-    env.made = lambda: set(bpy.data.images) - before             # noqa: E731
+    env.cache = lambda **kw: ImageCache(warnings.append, **kw)
+    env.made = lambda: set(bpy.data.images) - before
     yield env
     for im in set(bpy.data.images) - before:
         bpy.data.images.remove(im)

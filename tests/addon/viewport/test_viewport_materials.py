@@ -6,7 +6,7 @@ import numpy as np
 from support.viewport_util import build_scene, new_session, step
 
 
-def test_viewport_reads_colour_attributes_and_tangents(vp):  # noqa: F811
+def test_viewport_reads_colour_attributes_and_tangents(vp):
     import bpy
     build_scene()
     box = bpy.data.objects["Box"]
