@@ -360,6 +360,11 @@ def use_restir(scene, max_bounces=None, warmup_frames=16, mode="RESTIR_BIASED"):
 
 
 def save(name):
+    """Save the open file under example_blends/, every scene set to render
+    with ReSTIR GI (the engine of the dropdown when a user opens it)."""
+    register_engine()
+    for scene in bpy.data.scenes:
+        scene.render.engine = "RESTIR_GI"
     path = os.path.join(HERE, name)
     # Overwriting would leave a "<name>.blend1" backup next to the file.
     for p in (path, path + "1"):
