@@ -200,6 +200,10 @@ class Scene:
     # The world as a light (core/lights/environment.py's Environment: an HDRI, a sky);
     # None: a constant world of radiance world_color (LightSet builds it).
     environment: object = None
+    # The world's Volume output (Cycles' world volume): a homogeneous medium
+    # filling the space outside the objects' media, as a volume dict of
+    # core/integrators/media.py (sigma_a, sigma_s, emission, g); None: none.
+    world_volume: dict = None
     width: int = 64
     height: int = 64
     filter_width: float = 1.5   # pixel filter width in pixels (Blackman-Harris, as Cycles)
@@ -286,6 +290,8 @@ class Scene:
             shapes = sorted((k, getattr(v, "shape", None)) for k, v in self.images.items())
             arrays.append(np.frombuffer(repr((self.shaders, shapes)).encode(), np.uint8))
         world = self.environment.digest() if self.environment is not None else b""
+        if self.world_volume is not None:
+            world += repr(sorted(self.world_volume.items())).encode()
         return _digest(arrays, world)
 
 

@@ -11,7 +11,10 @@ side says whether the ray enters or leaves that object's medium (Cycles'
 volume stack, made per ray: a medium is inside an object, so the ray's
 origin is inside it if the first crossing of that object is a way out).
 Overlapping media add up, as in Cycles; anisotropy is averaged by the
-scattering coefficient.
+scattering coefficient. The world's medium (Scene.world_volume, Cycles'
+world volume) fills all space and adds to every interval: a ray that leaves
+the scene crosses an infinite length of it, so with any density the world
+and the sun, as in Cycles, are not seen through it.
 
 Along the ray the coefficients are then constant between crossings, so
 transmittance is exact (ratio tracking and delta tracking reduce to it in a
@@ -56,7 +59,10 @@ def coefficients(volume):
 class Media:
     """The media of a scene and their boundaries (see the module notes)."""
 
-    def __init__(self, scene, volumes, eps):
+    def __init__(self, scene, volumes, eps, world=None):
+        self.world = coefficients(world) if world is not None else None
+        if self.world is not None and not np.abs(self.world).max() > 0:
+            self.world = None
         mids = np.asarray(scene.material_ids)
         table = np.zeros((max(len(scene.shaders or ()), int(mids.max(initial=0)) + 1), C), np.float32)
         for i, v in volumes.items():
@@ -66,16 +72,19 @@ class Media:
         self.obj = np.asarray(scene.object_ids)[self.tri] if getattr(scene, "object_ids", None) is not None \
             else np.zeros(len(self.tri), np.int64)
         self.coeff = table[mids[self.tri]]
-        self.normals = np.asarray(scene.face_normals, np.float32)[self.tri]
+        self.normals = np.asarray(scene.face_normals, np.float32)[self.tri] if len(self.tri) \
+            else np.zeros((0, 3), np.float32)
         self.eps = float(eps)
-        self.accel = Accel(scene.vertices, np.asarray(scene.triangles)[self.tri], threads=1)
+        self.accel = Accel(scene.vertices, np.asarray(scene.triangles)[self.tri], threads=1) \
+            if len(self.tri) else None
 
     @property
     def empty(self):
-        return len(self.tri) == 0
+        return len(self.tri) == 0 and self.world is None
 
     def close(self):
-        self.accel.close()
+        if self.accel is not None:
+            self.accel.close()
 
     def crossings(self, o, d):
         """(t (N, K), boundary triangle (N, K), -1 where none) of every
@@ -85,7 +94,7 @@ class Media:
         n = len(o)
         ts, bs = [], []
         start = np.zeros(n, np.float32)
-        rows = np.arange(n)
+        rows = np.arange(n) if self.accel is not None else np.arange(0)
         for _ in range(MAX_CROSSINGS):
             if len(rows) == 0:
                 break
@@ -106,10 +115,13 @@ class Media:
     def along(self, o, d, t_end):
         """Intervals of the segments o + t d, 0 < t < t_end (inf: the ray
         leaves the scene). Only rays that cross a boundary are worked on:
-        the others meet no medium."""
+        the others meet no medium (but the world's, if there is one)."""
         t_all, b_all = self.crossings(o, d)
         end_all = np.asarray(t_end, np.float64).reshape(-1)
-        rows = np.nonzero((b_all >= 0).any(axis=1))[0]
+        if self.world is not None:
+            rows = np.arange(len(end_all))
+        else:
+            rows = np.nonzero((b_all >= 0).any(axis=1))[0]
         k = int((b_all[rows] >= 0).sum(axis=1).max(initial=0))
         t, b = t_all[rows, :k], b_all[rows, :k]
         m = len(rows)
@@ -127,6 +139,8 @@ class Media:
         vals = np.concatenate([start[:, None, :], start[:, None, :] + np.cumsum(sign * c, axis=1)], axis=1)
         # Past the last crossing the ray is outside every object.
         vals[np.arange(m), valid.sum(axis=1)] = 0.0
+        if self.world is not None:
+            vals += self.world
         vals[..., :9] = np.maximum(vals[..., :9], 0.0)     # (the last column, sigma_s x g, has a sign)
         end = end_all[rows]
         bounds = np.concatenate([np.zeros((m, 1)), np.minimum(t, end[:, None]), end[:, None]], axis=1)
@@ -263,18 +277,24 @@ def media_of(scene, eps):
     """The scene's Media (cached per scene geometry and graphs: the passes
     of a frame, on either worker thread, share one), None without media."""
     volumes = graph_media(getattr(scene, "shaders", None))
-    if not volumes or getattr(scene, "face_normals", None) is None:
+    world = getattr(scene, "world_volume", None)
+    if not volumes and world is None:
         return None
+    if volumes and getattr(scene, "face_normals", None) is None:
+        volumes = {}
+        if world is None:
+            return None
     # (versions: the geometry's change counter, which moves when an object
     # moves in place in the same arrays: the viewport, animation frames)
     key = (id(scene.vertices), id(scene.triangles), id(scene.material_ids), len(scene.triangles),
            getattr(scene, "versions", None),
-           tuple(sorted((i, tuple(coefficients(v))) for i, v in volumes.items())))
+           tuple(sorted((i, tuple(coefficients(v))) for i, v in volumes.items())),
+           None if world is None else tuple(coefficients(world)))
     with _LOCK:
         cached = _CACHE.get(id(scene))
         if cached is not None and cached[0] == key:
             return cached[1]
-        media = Media(scene, volumes, eps)
+        media = Media(scene, volumes, eps, world)
         if media.empty:
             media.close()
             media = None

@@ -208,7 +208,7 @@ def export_scene(depsgraph, width=None, height=None):
     vertices, triangles = cat(verts, (0, 3), np.float32), cat(tris, (0, 3), np.int32)
     per_tri = [cat(mids, (0,), np.int32), cat(normals, (0, 3, 3), np.float32),
                cat(uvs, (0, 3, 2), np.float32), cat(oids, (0,), np.int32)]
-    world = export_world(evaluated_world(depsgraph), materials.images, warn)[1]()
+    world, world_volume = export_world(evaluated_world(depsgraph), materials.images, warn)[1]()
     scene = make_scene(
         vertices, triangles,
         material_ids=per_tri[0],
@@ -223,6 +223,7 @@ def export_scene(depsgraph, width=None, height=None):
         corner_data=corner_data(corners, tris),
     )
     scene.environment = world
+    scene.world_volume = world_volume
     scene.film_transparent = film_transparent(bscene)
     scene.shaders = materials.graphs
     scene.images = materials.images.images

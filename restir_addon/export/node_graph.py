@@ -106,10 +106,7 @@ def translate(tree, output_types=("OUTPUT_MATERIAL",), images=None, name=""):
             graph.output = _Translator(graph, images).reader_value(surface, _Scope(tree), output.name)
         volume = output.inputs.get("Volume")
         if volume is not None and volume.is_linked and _available(volume):
-            if "OUTPUT_MATERIAL" not in output_types:
-                graph.warnings.append("volume shading of the world is not rendered")
-            else:
-                graph.volume = read_volume(volume, graph.warnings.append)
+            graph.volume = read_volume(volume, graph.warnings.append)
             if surface is not None and not surface.is_linked and "OUTPUT_MATERIAL" in output_types:
                 # Cycles' boundary of a volume-only material (a smoke domain,
                 # a fog box around the scene) lets light through: only the

@@ -1,4 +1,5 @@
-"""The world: its node graph (node_graph.py) as a core Environment light."""
+"""The world: its node graph (node_graph.py) as a core Environment light,
+and its Volume output as the medium filling the scene."""
 
 from ...core.lights.world import world_environment
 from .node_graph import world_graph
@@ -14,9 +15,10 @@ def evaluated_world(depsgraph):
 
 def export_world(world, images, warn):
     """(signature, build): the world graph's text, to tell whether it changed,
-    and a function building its Environment (None for a black world; building
-    an importance map evaluates the graph over the whole sphere, so the
-    viewport builds it only when the signature changed)."""
+    and a function building (its Environment, its volume): the Environment
+    None for a black world (building an importance map evaluates the graph
+    over the whole sphere, so the viewport builds it only when the signature
+    changed), the volume a medium dict (Scene.world_volume) or None."""
     graph = world_graph(world, images)
     name = world.name if world is not None else ""
     for text in graph.warnings:
@@ -25,6 +27,7 @@ def export_world(world, images, warn):
     signature = repr(graph)
 
     def build():
-        return world_environment(graph, images.images, lambda text: warn(f"World '{name}': {text}"))
+        environment = world_environment(graph, images.images, lambda text: warn(f"World '{name}': {text}"))
+        return environment, graph.volume
 
     return signature, build

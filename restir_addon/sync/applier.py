@@ -33,7 +33,7 @@ class SceneApplier:
         if p.lights is not None:
             self._scene_lights = p.lights
         if p.world is not None:
-            self._environment = p.world[0]
+            self._environment, self._world_volume = p.world
         if p.filter_width is not None:
             self._filter_width = p.filter_width
         if p.film_transparent is not None:
@@ -100,6 +100,7 @@ class SceneApplier:
         scene = Scene(vertices=a["vertices"], triangles=a["triangles"], normals=a["normals"],
                       uvs=a["uvs"], material_ids=mids, object_ids=a["object_ids"], materials=mats,
                       lights=self._scene_lights, camera=self._camera, environment=self._environment,
+                      world_volume=self._world_volume,
                       shaders=self._scene_shaders, images=self._scene_images,
                       corner_data=a.get("corner_data") or {},
                       width=w, height=h, filter_width=self._filter_width,

@@ -241,11 +241,11 @@ class SceneReader:
             self._queue(film_transparent=film)
 
     def _read_world(self, depsgraph, force=False):
-        """The world's environment if its graph changed (or force), else None."""
+        """(environment, volume) of the world if its graph changed (or force), else None."""
         graph_sig, build = export_world(evaluated_world(depsgraph), self._materials.images, self.warnings)
         if force or graph_sig != self._world:
             self._world = graph_sig
-            return (build(),)
+            return build()
         return None
 
 

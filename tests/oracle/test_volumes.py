@@ -1,6 +1,6 @@
 """Homogeneous volumes (core/integrators/media.py, core/integrators/media_path.py,
 restir_addon/export/volumes.py) against Cycles, in Path Tracing, and bad
-input.
+input; the world's volume too.
 
 Each scene: a box of medium (its material has only a Volume) on a lit floor
 in front of a wall, a sun and a grey world; both engines at 64 spp with the
@@ -185,6 +185,101 @@ def test_volume_bad_input(addon, reports, tmp_path):
         assert any("heterogeneous" in w and "Density" in w for w in warnings), reports.log
         if mode != "PATH":
             assert any("by Path Tracing" in w for w in warnings), reports.log
+
+
+def _world_volume(kind, **inputs):
+    """Link a volume node to the scene's world output (Cycles' world volume)."""
+    import bpy
+    tree = bpy.context.scene.world.node_tree
+    node = tree.nodes.new(kind)
+    for key, value in inputs.items():
+        node.inputs[key].default_value = value
+    out = next(n for n in tree.nodes if n.type == "OUTPUT_WORLD")
+    tree.links.new(node.outputs[0], out.inputs["Volume"])
+    return node
+
+
+def _lamp(location=(0.5, -1.0, 2.2), power=400.0):
+    import bpy
+    lamp = bpy.data.lights.new("Lamp", "POINT")
+    lamp.energy = power
+    lamp.shadow_soft_size = 0.1
+    ob = bpy.data.objects.new("Lamp", lamp)
+    ob.location = location
+    bpy.context.scene.collection.objects.link(ob)
+    return ob
+
+
+WORLD_CASES = {
+    "scatter": ("ShaderNodeVolumeScatter", dict(Density=0.12, Color=(0.8, 0.85, 0.9, 1), Anisotropy=0.3)),
+    "principled_emission": ("ShaderNodeVolumePrincipled", {"Density": 0.1, "Emission Strength": 0.05,
+                                                           "Emission Color": (1.0, 0.6, 0.3, 1)}),
+}
+
+
+@pytest.mark.parametrize("case", list(WORLD_CASES))
+def test_world_volume_matches_cycles(addon, case):
+    """Fog filling the world, lit by a point lamp: the sun and the sky are not
+    seen through an infinite length of it (as in Cycles), the lamp's light
+    is attenuated and scattered on its way."""
+    kind, inputs = WORLD_CASES[case]
+    scene = _stage()
+    _lamp()
+    _world_volume(kind, **inputs)
+    _compare(scene, f"world {case}")
+
+
+def test_world_volume_with_a_fog_box(addon):
+    """The world's medium and a box's add up inside the box."""
+    scene = _stage()
+    _lamp()
+    _world_volume("ShaderNodeVolumeScatter", Density=0.08)
+    ink, _ = _volume_material("ink", "ShaderNodeVolumeAbsorption", Density=1.0, Color=(0.2, 0.6, 0.9, 1))
+    _box("Ink", (-0.8, -0.8, 0.0), (0.8, 0.8, 1.6), ink)
+    _compare(scene, "world fog and an absorbing box")
+
+
+def test_world_volume_can_fail(addon):
+    """Without the world's medium the image is far from Cycles' with it."""
+    from support.blender_util import block_means, render_image, setup_cycles, setup_restir
+    scene = _stage()
+    _lamp()
+    node = _world_volume("ShaderNodeVolumeScatter", Density=0.12)
+    setup_cycles(scene, SAMPLES, 1, BOUNCES)
+    cycles = block_means(render_image(scene), 8)
+    node.inputs["Density"].default_value = 0.0
+    setup_restir(scene, SAMPLES, 1, BOUNCES)
+    ours = block_means(render_image(scene), 8)
+    print(f"world fog left out: block error {np.abs(ours - cycles).mean():.4f}")
+    assert np.abs(ours - cycles).mean() > 0.02
+
+
+def test_world_volume_bad_input(addon, reports, tmp_path):
+    """A world volume of density zero renders as none; a textured density
+    is read at its constant value with a warning; no lamp at all leaves a
+    black image. Valid images, no NaN, in every mode."""
+    from support.addon_util import render_exr
+    from restir_gi.core.camera.film import read_exr
+    scene = _stage(32, 24)
+    node = _world_volume("ShaderNodeVolumePrincipled", Density=0.0)
+    for mode in ("PATH", "RESTIR_BIASED"):
+        scene.restir_gi.mode = mode
+        render_exr(scene, tmp_path / f"zero_{mode}.exr")
+        img = read_exr(tmp_path / f"zero_{mode}.exr")
+        assert np.isfinite(img).all() and img[..., :3].mean() > 0.05     # the sun and the sky
+    tree = scene.world.node_tree
+    noise = tree.nodes.new("ShaderNodeTexNoise")
+    tree.links.new(noise.outputs["Fac"], node.inputs["Density"])
+    node.inputs["Density"].default_value = 1.0
+    for mode in ("PATH", "RESTIR_BIASED"):
+        scene.restir_gi.mode = mode
+        reports.log.clear()
+        render_exr(scene, tmp_path / f"textured_{mode}.exr")
+        img = read_exr(tmp_path / f"textured_{mode}.exr")
+        assert np.isfinite(img).all()
+        assert img[..., :3].mean() < 1e-3       # no lamp: the fog hides the sun and the sky
+        assert reports.of("ERROR") == []
+        assert any("World" in w and "heterogeneous" in w for w in reports.of("WARNING")), reports.log
 
 
 def test_media_unit():
