@@ -47,6 +47,7 @@ from ...core.integrators.bounces import Bounces
 from ...core.geometry.dynamic_accel import TraceInterrupted
 from ...core.util.errors import describe
 from ...core.camera.film import to_rgba
+from ...core.integrators.media import media_of
 from ...core.render import CHUNK_PIXELS, path_trace_pixels
 from ...core.restir import ReSTIRGI, ReSTIRSettings
 from ...core.restir.accumulation import STILL
@@ -253,8 +254,9 @@ class ViewportSession(Refinement, SceneSync):
         t0 = time.perf_counter()
         self._frame_is_restart, self._next_is_restart = self._next_is_restart, False
         self._frame_started = t0
+        path = self.path_traced
         try:
-            if self.mode == PATH:
+            if path:
                 color = self._path_sample(self.progress.samples)
             else:
                 settings = self.restir_settings if self.progress.moving else self._still_settings
@@ -271,7 +273,7 @@ class ViewportSession(Refinement, SceneSync):
             self._frame_started = None
         seconds = time.perf_counter() - t0
         color = np.nan_to_num(np.asarray(color, np.float64), nan=0.0, posinf=0.0, neginf=0.0)
-        if self.mode == PATH:       # (ReSTIR frames are running means already)
+        if path:                    # (ReSTIR frames are running means already)
             self._accum = color if self._accum is None else self._accum + color
             self._accum_n += 1
             color = self._accum / self._accum_n
@@ -291,6 +293,15 @@ class ViewportSession(Refinement, SceneSync):
         self._pixel_seconds = per_pixel if self._pixel_seconds is None else (
             0.5 * self._pixel_seconds + 0.5 * per_pixel)
         return True
+
+    @property
+    def path_traced(self):
+        """Whether frames are path-traced: in Path Tracing, and in the ReSTIR
+        modes while the scene has volumes, which they render by path
+        tracing as final renders do (core/integrators/media_path.py)."""
+        if self.mode == PATH:
+            return True
+        return self._ctx is not None and media_of(self._scene, self._ctx.eps) is not None
 
     def _path_sample(self, sample):
         """One path-traced sample per pixel, in batches (an abandon is noticed
@@ -379,4 +390,5 @@ class ViewportSession(Refinement, SceneSync):
             return "Waiting for the scene"
         w, h = self._scene.width, self._scene.height
         timing = f" | {self.last_frame_seconds:.2f} s/frame" if self.last_frame_seconds else ""
-        return f"{self.progress.text()} | {w}x{h}{timing}"
+        volumes = " | volumes: path traced" if self.mode != PATH and self.path_traced else ""
+        return f"{self.progress.text()} | {w}x{h}{timing}{volumes}"

@@ -204,3 +204,33 @@ def test08_edit_restarts_the_frame(vp):
     print("abandoned", session.work.abandoned_frames, "frames", session.work.frames)
     assert session.work.abandoned_frames == 3
     assert session.close()
+
+
+def test09_volumes_are_path_traced_in_the_restir_modes(vp):
+    """A world volume in a ReSTIR mode: the viewport path-traces its frames,
+    as final renders do, says so in the header, and its image is the Path
+    Tracing session's (the same seed and samples); a ReSTIR frame would
+    leave the fog out."""
+    import bpy
+    build_scene()
+    restir = new_session(vp, mode="RESTIR_BIASED")
+    step(restir, frames=2)
+    clear = restir.frame[..., :3].mean()
+    assert not restir.path_traced and "volumes" not in restir.status()
+    restir.close()
+    tree = bpy.context.scene.world.node_tree
+    fog = tree.nodes.new("ShaderNodeVolumeAbsorption")
+    fog.inputs["Density"].default_value = 0.3
+    tree.links.new(fog.outputs[0], next(n for n in tree.nodes if n.type == "OUTPUT_WORLD").inputs["Volume"])
+    images = {}
+    for mode in ("RESTIR_BIASED", "PATH"):
+        session = new_session(vp, mode=mode)
+        step(session, frames=2)
+        assert session.path_traced
+        images[mode] = session.frame[..., :3].copy()
+        if mode != "PATH":
+            assert "volumes: path traced" in session.status()
+        session.close()
+    assert np.isfinite(images["PATH"]).all()
+    np.testing.assert_allclose(images["RESTIR_BIASED"], images["PATH"], atol=1e-6)
+    assert images["PATH"].mean() < 0.8 * clear          # the fog absorbs
