@@ -87,7 +87,7 @@ def run(bpy, final, frames, n_tris, persistent, log):
     per_frame, memory = {}, {}
 
     def post(sc, *_):
-        per_frame[sc.frame_current] = dict(final.last_timings)
+        per_frame[sc.frame_current] = dict(final.state.stream_for(sc.name, sc.view_layers[0].name).timings)
         memory[sc.frame_current] = rss_mb()
 
     with tempfile.TemporaryDirectory(prefix="restir-anim-") as tmp, captured_output(log):

@@ -126,7 +126,7 @@ def main():
         t0 = time.perf_counter()
         bpy.ops.render.render(write_still=True)
         total = time.perf_counter() - t0
-        splits.append(dict(final.last_timings, total=total))
+        splits.append(dict(final.state.stream_for(scene.name, scene.view_layers[0].name).timings, total=total))
 
     med = lambda xs: statistics.median(xs)  # noqa: E731
     print(f"scene {Path(args.blend).name} {w}x{h}, {core_scene.triangle_count} triangles, "

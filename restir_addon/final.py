@@ -48,10 +48,6 @@ CHUNK_FRESH_FRAMES = None
 # Material, world and light previews (Properties editor): path-traced samples.
 PREVIEW_SAMPLES = 16
 
-# Seconds spent in each stage of the latest frame (for the benchmarks and the log).
-last_timings = {}
-
-
 def bounces(scene):
     """Render > Light Paths: the total and per-kind limits (as Cycles counts)."""
     s = scene.restir_gi
@@ -393,10 +389,8 @@ def _render_view(engine, depsgraph, view, report=True, stream=None, preview=Fals
             images = _render_restir(engine, ctx, scene, stream, width, height, export_s)
         render_s = time.perf_counter() - t1
         trace_s = ctx.accel.trace_seconds - trace_before
-        last_timings.clear()
-        last_timings.update(export=read_s, accel=apply_s, render=render_s, trace=trace_s,
-                            shade=render_s - trace_s,
-                            rays=ctx.accel.rays_traced - rays_before)
+        stream.timings = dict(export=read_s, accel=apply_s, render=render_s, trace=trace_s,
+                              shade=render_s - trace_s, rays=ctx.accel.rays_traced - rays_before)
     except SceneTooLarge as exc:
         engine.report({"ERROR"}, str(exc))
     except Exception as exc:  # noqa: BLE001 -- report, never kill the render
@@ -408,4 +402,5 @@ def _render_view(engine, depsgraph, view, report=True, stream=None, preview=Fals
             _write(result, images, width, height)
         finally:
             engine.end_result(result)
-        last_timings["write"] = time.perf_counter() - t2
+        if stream is not None:
+            stream.timings["write"] = time.perf_counter() - t2
