@@ -139,6 +139,18 @@ def volume(scene):
     scene.cycles.volume_bounces = 2
 
 
+def world_volume(scene):
+    """Fog filling the world (Volume Scatter, density 0.25, anisotropy 0.2),
+    around the box and inside it; Cycles' Light Paths > Volume bounces 2."""
+    tree = scene.world.node_tree
+    node = tree.nodes.new("ShaderNodeVolumeScatter")
+    node.inputs["Density"].default_value = 0.25
+    node.inputs["Anisotropy"].default_value = 0.2
+    out = next(n for n in tree.nodes if n.type == "OUTPUT_WORLD")
+    tree.links.new(node.outputs[0], out.inputs["Volume"])
+    scene.cycles.volume_bounces = 2
+
+
 def motion_blur(scene):
     """The short box sliding 0.8 and turning 30 degrees over the frame, the
     camera turning a little, shutter 0.5 around frame 1.5."""
@@ -157,4 +169,5 @@ def motion_blur(scene):
 
 
 FEATURES = {"panorama_equirectangular": panorama_equirectangular, "panorama_fisheye": panorama_fisheye,
-            "point_cloud": point_cloud, "hair": hair, "volume": volume, "motion_blur": motion_blur}
+            "point_cloud": point_cloud, "hair": hair, "volume": volume, "world_volume": world_volume,
+            "motion_blur": motion_blur}
