@@ -7,7 +7,13 @@ corner normals and face normals moved rigidly by the object's matrix then
 against its matrix at the frame) and the camera there too, in a scene and an
 acceleration structure of its own; the slices' films are summed. Up to
 MAX_SLICES slices of at least two samples each.
-Only objects' transforms move (rigid motion; no deformation blur).
+
+Deforming objects (armatures, shape keys, animated modifiers: Cycles'
+deformation blur) bring their triangles' corners in world space at the
+shutter's steps instead; a slice puts them where linear interpolation
+between the two steps around its time does (Cycles interpolates its motion
+steps linearly too), on vertices of their own. Their corner normals stay the
+frame's; their face normals follow the triangles.
 """
 
 import copy
@@ -33,15 +39,28 @@ class ShutterMotion:
     object_ids: np.ndarray
     matrices: np.ndarray
     at_frame: np.ndarray
+    # Deforming objects: {object id: (K, T_i, 3, 3) world-space corners of
+    # its triangles (in the scene's order) at the K shutter steps}.
+    corners: dict = dataclasses.field(default_factory=dict)
 
     @staticmethod
-    def of(scene, by_key):
+    def of(scene, by_key, deformed=None):
         """ShutterMotion of the scene's objects whose matrices over the shutter
-        (by_key: {object key: (K, 4, 4)}) differ from their frame's, or None."""
+        (by_key: {object key: (K, 4, 4)}) differ from their frame's, and of
+        those whose triangles deform (deformed: {object key: (K, T, 3, 3)}
+        world-space corners, taken where the triangle count matches the
+        scene's); None if nothing moves."""
         keys = list(getattr(scene, "object_keys", None) or ())
         frame = np.asarray(getattr(scene, "object_matrices", np.zeros((0, 4, 4))), np.float64)
-        ids, mats = [], []
+        counts = np.bincount(np.asarray(scene.object_ids, np.int64), minlength=len(keys)) \
+            if deformed else None
+        ids, mats, corners = [], [], {}
         for i, key in enumerate(keys):      # (the scene's objects, not its rays)
+            c = (deformed or {}).get(key)
+            if c is not None and c.ndim == 4 and c.shape[1] == counts[i] and np.isfinite(c).all() \
+                    and not np.allclose(c, c[:1], atol=1e-7):
+                corners[i] = np.asarray(c, np.float32)
+                continue
             m = by_key.get(key)
             if m is None or i >= len(frame):
                 continue
@@ -49,10 +68,19 @@ class ShutterMotion:
             if np.isfinite(m).all() and not np.allclose(m, frame[i][None], atol=1e-7):
                 ids.append(i)
                 mats.append(m)
-        if not ids:
+        if not ids and not corners:
             return None
         ids = np.asarray(ids, np.int64)
-        return ShutterMotion(ids, np.stack(mats), frame[ids])
+        return ShutterMotion(ids, np.stack(mats) if mats else np.zeros((0, 2, 4, 4)),
+                             frame[ids] if len(ids) else np.zeros((0, 4, 4)), corners)
+
+    def corners_at(self, object_id, time):
+        """(T, 3, 3) corners of a deforming object at shutter time ``time``."""
+        c = self.corners[object_id]
+        x = float(np.clip(time, 0.0, 1.0)) * (len(c) - 1)
+        k = min(int(x), len(c) - 2)
+        f = x - k
+        return (1.0 - f) * c[k] + f * c[k + 1]
 
     def at(self, time):
         """(M, 4, 4) matrices taking each moving object from the frame to
@@ -98,6 +126,8 @@ def scene_at(scene, motion, time):
         fn = np.einsum("nij,nj->ni", normal_m, faces[moving].astype(np.float64))
         faces[moving] = (fn / np.maximum(np.linalg.norm(fn, axis=1, keepdims=True), 1e-30)).astype(np.float32)
         out.face_normals = faces
+    if motion.corners:
+        _place_deformed(out, motion, time, tri_obj)
     out.known_bounds = None
     camera = scene.camera
     if getattr(camera, "motion", None) is not None:
@@ -108,6 +138,29 @@ def scene_at(scene, motion, time):
     out.camera = camera
     out.shutter_motion = None
     return out
+
+
+def _place_deformed(out, motion, time, tri_obj):
+    """The deforming objects' triangles of ``out`` at ``time``, on new vertices."""
+    vertices, triangles = [out.vertices], np.array(out.triangles)
+    faces = None if out.face_normals is None else np.array(out.face_normals, np.float32)
+    base = len(out.vertices)
+    for oid in motion.corners:
+        rows = np.nonzero(tri_obj == oid)[0]
+        c = motion.corners_at(oid, time).astype(np.float32)
+        if len(c) != len(rows):
+            continue
+        vertices.append(c.reshape(-1, 3))
+        triangles[rows] = base + np.arange(3 * len(rows)).reshape(-1, 3)
+        base += 3 * len(rows)
+        if faces is not None:
+            n = np.cross(c[:, 1] - c[:, 0], c[:, 2] - c[:, 0])
+            length = np.linalg.norm(n, axis=1, keepdims=True)
+            faces[rows] = np.where(length > 1e-30, n / np.maximum(length, 1e-30), faces[rows])
+    out.vertices = np.concatenate(vertices).astype(np.float32)
+    out.triangles = triangles.astype(np.int32)
+    if faces is not None:
+        out.face_normals = faces
 
 
 def render_blurred(render_frame, ctx, settings, frame, on_sample=None, should_stop=None):

@@ -339,15 +339,16 @@ def _render_view(engine, depsgraph, view, report=True, stream=None, preview=Fals
         frame_scene = stream.frame_scene
         # A later view of the frame changes only the camera of the exported scene.
         camera = view_camera(engine, depsgraph, view, frame_scene.warnings)
-        blur_notes, moving = [], {}
+        blur_notes, moving, deformed = [], {}, {}
         if view is None and not preview:
-            camera, moving = moving_camera(engine, depsgraph, blur_notes.append,
-                                           objects=scene.restir_gi.mode == "PATH")
+            camera, moving, deformed = moving_camera(engine, depsgraph, blur_notes.append,
+                                                     objects=scene.restir_gi.mode == "PATH")
         has_camera = frame_scene.update(depsgraph, width, height, camera, camera_only=not report)
         for text in blur_notes:        # after the update, which may start its warnings over
             frame_scene.warnings(text)
         if frame_scene.scene is not None:       # objects' motion blur (core/object_motion.py)
-            frame_scene.scene.shutter_motion = ShutterMotion.of(frame_scene.scene, moving) if moving else None
+            frame_scene.scene.shutter_motion = ShutterMotion.of(frame_scene.scene, moving, deformed) \
+                if moving or deformed else None
         for text in frame_scene.new_warnings(repeat=not continuing) if report and not preview else ():
             engine.report({"WARNING"}, text)
         core_scene, ctx = frame_scene.scene, frame_scene.context

@@ -7,13 +7,17 @@ steps) by re-evaluating the scene at those subframes (RenderEngine.frame_set,
 as Cycles does), and core/camera/motion.py interpolates between them per camera
 ray; so are the objects' matrices, whose motion core/object_motion.py
 renders in time slices (Path Tracing; the ReSTIR modes blur the camera's
-motion only, their reprojection following the frame's camera). Rigid
-motion only.
+motion only, their reprojection following the frame's camera). Objects
+that may deform (modifiers, shape keys, animation) and keep Cycles'
+Object > Motion Blur > Deformation on are read again at each step: their
+triangles' corners in world space, where they changed (deformation blur).
 """
 
 import math
 
 import numpy as np
+
+from .sync.objects import read_object_mesh
 
 STEPS = 3
 
@@ -29,22 +33,49 @@ def shutter_times(render, frame):
     return [frame + start + shutter * k / (STEPS - 1) for k in range(STEPS)]
 
 
+def may_deform(obj):
+    """Whether an object's mesh may change over the shutter and Cycles would
+    blur it (Object > Motion Blur: Motion Blur and Deformation, both on by
+    default): modifiers, shape keys, or animation on it or its data."""
+    o = obj.original if obj.original is not None else obj
+    cycles = getattr(o, "cycles", None)
+    if cycles is not None and not (getattr(cycles, "use_motion_blur", True)
+                                   and getattr(cycles, "use_deform_motion", True)):
+        return False
+    data = getattr(o, "data", None)
+    keys = getattr(data, "shape_keys", None)
+    return bool(len(o.modifiers)) or keys is not None or getattr(data, "animation_data", None) is not None
+
+
+def deformed_corners(obj, matrix):
+    """(T, 3, 3) world-space corners of an evaluated object's triangles, as
+    the scene reads them (sync/objects.py), or None."""
+    mesh = read_object_mesh(obj)
+    if mesh is None or len(mesh.triangles) == 0:
+        return None
+    m = np.asarray(matrix, np.float64)
+    world = mesh.positions.astype(np.float64) @ m[:3, :3].T + m[:3, 3]
+    return world[mesh.triangles].astype(np.float32)
+
+
 def camera_motion(engine, depsgraph, warn, objects=True):
-    """(camera, objects): the scene camera's (STEPS, 4, 4) matrices over the
-    shutter, or None when it does not move, and {object key: (STEPS, 4, 4)}
-    of every geometry instance (core/object_motion.py keeps those that
-    move); (None, {}) when motion blur is off or the shutter is zero. Leaves
-    the scene evaluated at its frame again."""
+    """(camera, objects, deformed): the scene camera's (STEPS, 4, 4) matrices
+    over the shutter, or None when it does not move; {object key: (STEPS, 4,
+    4)} of every geometry instance (core/object_motion.py keeps those that
+    move); {object key: (STEPS, T, 3, 3)} world-space triangle corners of the
+    objects that may deform. (None, {}, {}) when motion blur is off or the
+    shutter is zero. Leaves the scene evaluated at its frame again."""
     from .export import instance_key                # noqa: PLC0415 (bpy-heavy)
     from .export.mesh import GEOMETRY_TYPES         # noqa: PLC0415
     scene = depsgraph.scene
     times = shutter_times(scene.render, scene.frame_current + scene.frame_subframe)
     if times is None:
-        return None, {}
-    warn("Motion blur: objects move rigidly (no deformation blur)" if objects else
-         "Motion blur in the ReSTIR modes: the camera's motion only; objects render sharp (Path Tracing blurs them)")
+        return None, {}, {}
+    if not objects:
+        warn("Motion blur in the ReSTIR modes: the camera's motion only; objects render sharp "
+             "(Path Tracing blurs them)")
     frame, subframe = scene.frame_current, scene.frame_subframe
-    matrices, read_objects, objects = [], objects, {}
+    matrices, read_objects, objects, deformed = [], objects, {}, {}
     try:
         for t in times:
             whole = math.floor(t)
@@ -54,13 +85,18 @@ def camera_motion(engine, depsgraph, warn, objects=True):
             for inst in (depsgraph.object_instances if read_objects else ()):    # (the scene's objects)
                 obj = inst.object
                 if obj.type in GEOMETRY_TYPES:
-                    objects.setdefault(instance_key(inst, obj), []).append(np.array(inst.matrix_world, np.float64))
+                    key = instance_key(inst, obj)
+                    objects.setdefault(key, []).append(np.array(inst.matrix_world, np.float64))
+                    if not inst.is_instance and may_deform(obj):
+                        deformed.setdefault(key, []).append(deformed_corners(obj, inst.matrix_world))
     finally:
         engine.frame_set(frame, subframe)
     objects = {k: np.stack(v) for k, v in objects.items() if len(v) == len(times)}
+    deformed = {k: np.stack(v) for k, v in deformed.items()
+                if len(v) == len(times) and all(c is not None and c.shape == v[0].shape for c in v)}
     if len(matrices) != len(times):
-        return None, objects
+        return None, objects, deformed
     m = np.stack(matrices)
     if not np.isfinite(m).all() or np.allclose(m, m[:1], atol=1e-7):
-        return None, objects
-    return m.astype(np.float32), objects
+        return None, objects, deformed
+    return m.astype(np.float32), objects, deformed

@@ -45,9 +45,10 @@ def moving_camera(engine, depsgraph, warn, objects=True):
     """(camera, objects): the scene camera with its motion over the shutter
     (motion_blur.py), or None (the frame's camera), and the objects'
     matrices over the shutter by object key ({} without motion blur, or
-    without ``objects``: the ReSTIR modes blur the camera's motion only)."""
-    motion, objects = camera_motion(engine, depsgraph, warn, objects)
+    without ``objects``: the ReSTIR modes blur the camera's motion only),
+    and the deforming objects' triangle corners by object key."""
+    motion, objects, deformed = camera_motion(engine, depsgraph, warn, objects)
     if motion is None:
-        return None, objects
+        return None, objects, deformed
     camera = export_camera(depsgraph, warn, region=True)
-    return (None if camera is None else replace(camera, motion=motion)), objects
+    return (None if camera is None else replace(camera, motion=motion)), objects, deformed

@@ -122,6 +122,62 @@ def test_object_motion_blur_matches_cycles(addon):
     assert r["chi"] < 2.5
 
 
+def _deforming_scene(width=64, height=48):
+    """A still camera; a red panel of 6 x 6 quads whose shape key shears its
+    top 1.5 sideways over the frame (linear keyframes): deformation blur."""
+    import bpy
+    from support.addon_util import add_mesh
+    from support.blender_util import diffuse_material
+    scene = _scene(width, height, shutter=0.5)
+    cam = scene.camera
+    cam.animation_data_clear()
+    cam.location, cam.rotation_euler = (0, -3, 1.2), (math.radians(85), 0, 0)
+    n = 6
+    verts = [(-0.8 + 1.2 * i / n, 1.0, 0.1 + 1.6 * j / n) for j in range(n + 1) for i in range(n + 1)]
+    faces = [[j * (n + 1) + i, j * (n + 1) + i + 1, (j + 1) * (n + 1) + i + 1, (j + 1) * (n + 1) + i]
+             for j in range(n) for i in range(n)]
+    panel = add_mesh("Panel", verts, faces, mat=diffuse_material("Panel", (0.9, 0.2, 0.1)))
+    panel.shape_key_add(name="Basis")
+    sheared = panel.shape_key_add(name="Sheared")
+    for k, v in enumerate(verts):
+        sheared.data[k].co = (v[0] + 1.5 * (v[2] - 0.1) / 1.6, v[1], v[2])
+    for frame, value in ((1, 0.0), (2, 1.0)):
+        sheared.value = value
+        sheared.keyframe_insert("value", frame=frame)
+    _linear(panel.data.shape_keys)
+    bpy.context.view_layer.update()
+    scene.frame_set(1, subframe=0.5)
+    return scene, panel
+
+
+def test_deformation_blur_matches_cycles(addon):
+    """A shape key shearing a panel over the shutter: each time slice puts
+    its triangles between the shutter's steps (core/object_motion.py)."""
+    from support.blender_util import compare_with_cycles
+    scene, _ = _deforming_scene()
+    r = compare_with_cycles(scene, SAMPLES, BOUNCES, block=8)
+    assert np.isfinite(r["ours"]).all()
+    print(f"deformation blur: mean ours {r['ours_mean']:.4f} cycles {r['cycles_mean']:.4f} "
+          f"ratio {r['ratio']:.4f} block chi {r['chi']:.2f}")
+    assert abs(r["ratio"] - 1.0) < 0.02
+    assert r["chi"] < 2.5
+
+
+def test_deformation_blur_can_fail(addon):
+    """With the object's Deformation blur off, ours is far from Cycles' blurred
+    panel."""
+    from support.blender_util import block_means, render_image, setup_cycles, setup_restir
+    scene, panel = _deforming_scene()
+    setup_cycles(scene, SAMPLES, 1, BOUNCES)
+    cycles = block_means(render_image(scene), 8)
+    setup_restir(scene, SAMPLES, 1, BOUNCES)
+    right = np.abs(block_means(render_image(scene), 8) - cycles).mean()
+    panel.cycles.use_deform_motion = False
+    wrong = np.abs(block_means(render_image(scene), 8) - cycles).mean()
+    print(f"block error against Cycles' blurred panel: blurred {right:.4f}, sharp {wrong:.4f}")
+    assert wrong > 2.5 * right
+
+
 def test_motion_blur_bad_input(addon, reports, tmp_path):
     """A zero shutter renders sharp, a ReSTIR mode says it blurs only the
     camera; never NaN, and the scene is left at its frame."""
