@@ -12,8 +12,8 @@ Deforming objects (armatures, shape keys, animated modifiers: Cycles'
 deformation blur) bring their triangles' corners in world space at the
 shutter's steps instead; a slice puts them where linear interpolation
 between the two steps around its time does (Cycles interpolates its motion
-steps linearly too), on vertices of their own. Their corner normals stay the
-frame's; their face normals follow the triangles.
+steps linearly too), on vertices of their own; their corner normals are
+interpolated alike, and their face normals follow the triangles.
 """
 
 import copy
@@ -39,17 +39,18 @@ class ShutterMotion:
     object_ids: np.ndarray
     matrices: np.ndarray
     at_frame: np.ndarray
-    # Deforming objects: {object id: (K, T_i, 3, 3) world-space corners of
-    # its triangles (in the scene's order) at the K shutter steps}.
+    # Deforming objects: {object id: (K, T_i, 2, 3, 3) world-space corner
+    # positions and corner normals of its triangles (in the scene's order) at
+    # the K shutter steps}.
     corners: dict = dataclasses.field(default_factory=dict)
 
     @staticmethod
     def of(scene, by_key, deformed=None):
         """ShutterMotion of the scene's objects whose matrices over the shutter
         (by_key: {object key: (K, 4, 4)}) differ from their frame's, and of
-        those whose triangles deform (deformed: {object key: (K, T, 3, 3)}
-        world-space corners, taken where the triangle count matches the
-        scene's); None if nothing moves."""
+        those whose triangles deform (deformed: {object key: (K, T, 2, 3, 3)}
+        world-space corner positions and normals, taken where the triangle
+        count matches the scene's); None if nothing moves."""
         keys = list(getattr(scene, "object_keys", None) or ())
         frame = np.asarray(getattr(scene, "object_matrices", np.zeros((0, 4, 4))), np.float64)
         counts = np.bincount(np.asarray(scene.object_ids, np.int64), minlength=len(keys)) \
@@ -57,8 +58,8 @@ class ShutterMotion:
         ids, mats, corners = [], [], {}
         for i, key in enumerate(keys):      # (the scene's objects, not its rays)
             c = (deformed or {}).get(key)
-            if c is not None and c.ndim == 4 and c.shape[1] == counts[i] and np.isfinite(c).all() \
-                    and not np.allclose(c, c[:1], atol=1e-7):
+            if c is not None and c.ndim == 5 and c.shape[1] == counts[i] and np.isfinite(c).all() \
+                    and not np.allclose(c[:, :, 0], c[:1, :, 0], atol=1e-7):
                 corners[i] = np.asarray(c, np.float32)
                 continue
             m = by_key.get(key)
@@ -75,12 +76,17 @@ class ShutterMotion:
                              frame[ids] if len(ids) else np.zeros((0, 4, 4)), corners)
 
     def corners_at(self, object_id, time):
-        """(T, 3, 3) corners of a deforming object at shutter time ``time``."""
+        """(positions (T, 3, 3), unit normals (T, 3, 3)) of a deforming
+        object's triangle corners at shutter time ``time``."""
         c = self.corners[object_id]
         x = float(np.clip(time, 0.0, 1.0)) * (len(c) - 1)
         k = min(int(x), len(c) - 2)
         f = x - k
-        return (1.0 - f) * c[k] + f * c[k + 1]
+        both = (1.0 - f) * c[k] + f * c[k + 1]
+        n = both[:, 1]
+        length = np.linalg.norm(n, axis=2, keepdims=True)
+        n = np.where(length > 1e-30, n / np.maximum(length, 1e-30), c[k, :, 1])
+        return both[:, 0], n
 
     def at(self, time):
         """(M, 4, 4) matrices taking each moving object from the frame to
@@ -143,13 +149,16 @@ def scene_at(scene, motion, time):
 def _place_deformed(out, motion, time, tri_obj):
     """The deforming objects' triangles of ``out`` at ``time``, on new vertices."""
     vertices, triangles = [out.vertices], np.array(out.triangles)
+    normals = np.array(out.normals, np.float32)
     faces = None if out.face_normals is None else np.array(out.face_normals, np.float32)
     base = len(out.vertices)
     for oid in motion.corners:
         rows = np.nonzero(tri_obj == oid)[0]
-        c = motion.corners_at(oid, time).astype(np.float32)
+        c, cn = motion.corners_at(oid, time)
+        c = c.astype(np.float32)
         if len(c) != len(rows):
             continue
+        normals[rows] = cn
         vertices.append(c.reshape(-1, 3))
         triangles[rows] = base + np.arange(3 * len(rows)).reshape(-1, 3)
         base += 3 * len(rows)
@@ -159,6 +168,7 @@ def _place_deformed(out, motion, time, tri_obj):
             faces[rows] = np.where(length > 1e-30, n / np.maximum(length, 1e-30), faces[rows])
     out.vertices = np.concatenate(vertices).astype(np.float32)
     out.triangles = triangles.astype(np.int32)
+    out.normals = normals
     if faces is not None:
         out.face_normals = faces
 

@@ -48,22 +48,26 @@ def may_deform(obj):
 
 
 def deformed_corners(obj, matrix):
-    """(T, 3, 3) world-space corners of an evaluated object's triangles, as
-    the scene reads them (sync/objects.py), or None."""
+    """(T, 2, 3, 3): world-space corner positions and corner normals of an
+    evaluated object's triangles, as the scene reads them (sync/objects.py),
+    or None."""
     mesh = read_object_mesh(obj)
     if mesh is None or len(mesh.triangles) == 0:
         return None
     m = np.asarray(matrix, np.float64)
     world = mesh.positions.astype(np.float64) @ m[:3, :3].T + m[:3, 3]
-    return world[mesh.triangles].astype(np.float32)
+    normal_m = np.linalg.pinv(m[:3, :3]).T
+    normals = np.asarray(mesh.normals, np.float64) @ normal_m.T
+    normals /= np.maximum(np.linalg.norm(normals, axis=2, keepdims=True), 1e-30)
+    return np.stack([world[mesh.triangles], normals], axis=1).astype(np.float32)
 
 
 def camera_motion(engine, depsgraph, warn, objects=True):
     """(camera, objects, deformed): the scene camera's (STEPS, 4, 4) matrices
     over the shutter, or None when it does not move; {object key: (STEPS, 4,
     4)} of every geometry instance (core/object_motion.py keeps those that
-    move); {object key: (STEPS, T, 3, 3)} world-space triangle corners of the
-    objects that may deform. (None, {}, {}) when motion blur is off or the
+    move); {object key: (STEPS, T, 2, 3, 3)} world-space triangle corners
+    and corner normals of the objects that may deform. (None, {}, {}) when motion blur is off or the
     shutter is zero. Leaves the scene evaluated at its frame again."""
     from .export import instance_key                # noqa: PLC0415 (bpy-heavy)
     from .export.mesh import GEOMETRY_TYPES         # noqa: PLC0415

@@ -122,9 +122,10 @@ def test_object_motion_blur_matches_cycles(addon):
     assert r["chi"] < 2.5
 
 
-def _deforming_scene(width=64, height=48):
+def _deforming_scene(width=64, height=48, tilt=False):
     """A still camera; a red panel of 6 x 6 quads whose shape key shears its
-    top 1.5 sideways over the frame (linear keyframes): deformation blur."""
+    top 1.5 sideways over the frame (linear keyframes), or with ``tilt``
+    leans it back about its bottom edge (its normals turn): deformation blur."""
     import bpy
     from support.addon_util import add_mesh
     from support.blender_util import diffuse_material
@@ -140,7 +141,9 @@ def _deforming_scene(width=64, height=48):
     panel.shape_key_add(name="Basis")
     sheared = panel.shape_key_add(name="Sheared")
     for k, v in enumerate(verts):
-        sheared.data[k].co = (v[0] + 1.5 * (v[2] - 0.1) / 1.6, v[1], v[2])
+        lean = (v[2] - 0.1) / 1.6
+        sheared.data[k].co = (v[0], v[1] + 1.2 * lean, v[2] - 0.5 * lean) if tilt else \
+            (v[0] + 1.5 * lean, v[1], v[2])
     for frame, value in ((1, 0.0), (2, 1.0)):
         sheared.value = value
         sheared.keyframe_insert("value", frame=frame)
@@ -150,14 +153,16 @@ def _deforming_scene(width=64, height=48):
     return scene, panel
 
 
-def test_deformation_blur_matches_cycles(addon):
-    """A shape key shearing a panel over the shutter: each time slice puts
-    its triangles between the shutter's steps (core/object_motion.py)."""
+@pytest.mark.parametrize("tilt", [False, True])
+def test_deformation_blur_matches_cycles(addon, tilt):
+    """A shape key shearing or tilting a panel over the shutter: each time
+    slice puts its triangles and their normals between the shutter's steps
+    (core/object_motion.py)."""
     from support.blender_util import compare_with_cycles
-    scene, _ = _deforming_scene()
+    scene, _ = _deforming_scene(tilt=tilt)
     r = compare_with_cycles(scene, SAMPLES, BOUNCES, block=8)
     assert np.isfinite(r["ours"]).all()
-    print(f"deformation blur: mean ours {r['ours_mean']:.4f} cycles {r['cycles_mean']:.4f} "
+    print(f"deformation blur ({'tilt' if tilt else 'shear'}): mean ours {r['ours_mean']:.4f} cycles {r['cycles_mean']:.4f} "
           f"ratio {r['ratio']:.4f} block chi {r['chi']:.2f}")
     assert abs(r["ratio"] - 1.0) < 0.02
     assert r["chi"] < 2.5
