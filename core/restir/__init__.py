@@ -11,8 +11,10 @@ that lives between frames; everything else is plain functions of plain arrays.
 import time
 
 from ..workers.parallel import release_free_memory
-from .frame import STAGES, FrameState, SceneChanges, Timings, distinct, next_history
-from .reservoirs import NARROW_MIN_PIXELS
+from .frame import STAGES, FrameState, next_history
+from .reservoirs import NARROW_MIN_PIXELS, distinct
+from .scene_changes import SceneChanges
+from .timings import Timings
 from .accumulation import restart
 from .settings import BIASED, UNBIASED, FrameResult, ReSTIRSettings  # noqa: F401  (the package's API)
 

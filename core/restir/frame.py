@@ -4,8 +4,9 @@
 function of it, run in this order by ``STAGES`` (the wavefront of pbrt-v4's
 ``Render()``, one whole-image pass per stage or per pair of stages):
 
-    scene changes  objects that moved carry their samples; lights, materials
-                   and the world compared with last frame's; sample validation
+    scene changes  (scene_changes.py) objects that moved carry their samples;
+                   lights, materials and the world compared with last
+                   frame's; sample validation
     first pass     per pixel range: G-buffer, reprojection, initial samples,
                    sky rays, temporal reuse
     between passes edge refinement, the gates of the running means, the
@@ -22,8 +23,6 @@ frames live only while the range runs: the second pass needs of them what the
 whole-image arrays hold.
 """
 
-import contextlib
-import threading
 import time
 from dataclasses import dataclass, replace
 
@@ -32,7 +31,6 @@ import numpy as np
 from ..camera.projection import PixelFilter
 from ..materials import shading as materials
 from ..sampling import samplers
-from ..util.errors import context
 from ..util.rows import gather, scale, scatter, scatter_add
 from ..util.vectors import luminance
 from .accumulation import (COLUMNS, Accumulation, FrameValues, accumulate, geometric_edges, light_range,
@@ -44,61 +42,21 @@ from .denoise import denoise as svgf
 from .gbuffer import FirstPass, FrameImage, trace_rows
 from .glossy_reuse import GlossySamples, reuse_glossy
 from .initial import InitialSampling, initial_samples
-from .reservoirs import cap_history, finalize, merge
+from .reservoirs import distinct, finalize, merge
+from .scene_changes import SceneChanges, scene_changes
 from .settings import UNBIASED
 from .shading import carried_visibility, shade_indirect
 from .shift import target_at
 from .sky import pixel_shares, point_plan, visible_sky_light
 from .spatial import CarriedSpatial, SpatialReuse, shared_terms, spatial_resample
 from .silhouettes import refine_edges
-from .temporal import FrameHistory, ObjectMotion, carry_with_objects, reproject, temporal_resample
-from .validation import validate
+from .temporal import FrameHistory, reproject, temporal_resample
+from .timings import Timings, stage
 
 MOVING_CAP = 4      # frames of accumulated history kept in a frame where objects moved
 MOVING_M_CAP = 4.0  # M cap of the reservoirs of pixels on objects that moved: a moving
                     # object's light changes as it moves, and with the usual caps its
                     # reservoirs lagged (tests/core/restir/test_restir_moving_objects.py)
-PASSES = ("gbuffer", "validation", "initial", "temporal", "spatial", "glossy", "shading", "denoise")
-
-
-def stage(name):
-    """Errors raised inside name the frame's stage (errors.context)."""
-    return context("stage", name)
-
-
-class Timings:
-    """Seconds per pass, added up over the workers' ranges."""
-
-    def __init__(self):
-        self.seconds = dict.fromkeys(PASSES, 0.0)
-        self._lock = threading.Lock()
-
-    def spent(self, name, t0):
-        """Adds the time since t0 to pass ``name``; returns the time now."""
-        with self._lock:
-            self.seconds[name] += time.perf_counter() - t0
-        return time.perf_counter()
-
-    @contextlib.contextmanager
-    def timed(self, name):
-        t = time.perf_counter()
-        try:
-            yield
-        finally:
-            self.spent(name, t)
-
-
-@dataclass
-class SceneChanges:
-    """What a stream of frames remembers of its scene to see what changed:
-    the scene's keys at the last frame, and what happened since the last
-    sample validation."""
-    lighting_key: object = None     # Scene.lighting_key of the last frame
-    shading_key: object = None      # Scene.shading_key of the last frame
-    geometry_key: object = None     # Scene.geometry_key of the last frame
-    stale: bool = False             # the lighting changed since the last validation
-    light_edit: bool = False        # lights, materials or the world changed since the last validation
-    validations: int = 0            # sample validations run (skipped while nothing changed)
 
 
 @dataclass
@@ -171,63 +129,6 @@ class FrameState:
             return cap
         on = np.where(object_id >= 0, self.motion.moved_now[np.maximum(object_id, 0)], False)
         return np.where(on, min(cap, MOVING_M_CAP), cap).astype(np.float32)
-
-
-def scene_changes(s):
-    """Objects that moved carry their samples and owners; what changed in the
-    scene decides what the running means forget; after a lighting change,
-    stored samples are re-traced (validation.py) every validation_interval
-    frames."""
-    t = time.perf_counter()
-    ctx, settings, history, changes = s.ctx, s.settings, s.history, s.changes
-    scene = ctx.scene
-    with stage("object motion"):
-        if history is not None:
-            carry_with_objects(scene, history)     # samples and owners ride with moved objects
-        s.motion = ObjectMotion.between(scene, history)
-
-    # Last frame's traced visibility is reused only if no triangle moved.
-    geometry_key = scene.geometry_key()
-    s.moved = history is not None and geometry_key != changes.geometry_key
-    s.static = history is not None and history.visibility is not None and not s.moved
-    changes.geometry_key = geometry_key
-    # What the pixels' running means forget (accumulation.py): everything
-    # after an edit of lights, materials or the world (in the same frame as
-    # objects moved too: the lights' edit lit the whole image anew), and
-    # again when validation brings the stored samples up to date with that
-    # edit; all but the last MOVING_CAP frames when objects moved or samples
-    # were validated after objects moved (local changes: shadows, reflections).
-    if settings.validation_interval > 0 or s.accumulating:
-        shading_key = scene.shading_key()
-        key = scene.lighting_key(geometry_key, shading_key)
-        relit = changes.lighting_key is not None and key != changes.lighting_key
-        changes.stale |= relit
-        changes.lighting_key = key
-        reshaded = changes.shading_key is not None and shading_key != changes.shading_key
-        changes.shading_key = shading_key
-        s.forget_all = (relit and not s.moved) or reshaded
-        changes.light_edit |= s.forget_all
-        s.forget_old = s.moved
-    # Stored samples are re-traced only if the lighting changed since the
-    # last validation: in an unchanged scene a re-traced path (same seed)
-    # gives exactly its stored radiance.
-    if settings.validation_interval > 0 and history is not None and changes.stale \
-            and (s.index % settings.validation_interval == 0 or settings.validate_on_change):
-        with stage("sample validation"):
-            validate(ctx, distinct(history.temporal, history.spatial), settings.max_bounces)
-        changes.validations += 1
-        changes.stale = False
-        if changes.light_edit:
-            # Samples found under the old light stand for one candidate
-            # each: a spot widened from 20 to 120 degrees left frames 7-12 %
-            # dark for 14 frames while reservoirs of M up to the caps
-            # outweighed the new light's samples (2-3 % with this).
-            for res in distinct(history.temporal, history.spatial):
-                cap_history(res, 1.0)
-        s.forget_all |= changes.light_edit
-        s.forget_old = True
-        changes.light_edit = False
-    s.timings.spent("validation", t)
 
 
 def first_pass(s):
@@ -484,9 +385,3 @@ def next_history(s, signature):
         signature=signature, temporal=s.temporal, spatial=s.spatial, visibility=s.visibility,
         noise_hold=hold, accumulation=frame_acc if s.accumulating else None, sky_share=sky_share)
     return history, frame_acc
-
-
-def distinct(*sets):
-    """The reservoir sets, each once (without spatial reuse the spatial
-    reservoirs are the temporal ones)."""
-    return [r for i, r in enumerate(sets) if all(r is not other for other in sets[:i])]

@@ -404,3 +404,9 @@ class StoredReservoirs:
         self.W[mask] = 0
         self.lo16[mask] = 0
         self.prim2[mask] = -1
+
+
+def distinct(*sets):
+    """The reservoir sets, each once (without spatial reuse the spatial
+    reservoirs are the temporal ones)."""
+    return [r for i, r in enumerate(sets) if all(r is not other for other in sets[:i])]
