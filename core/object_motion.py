@@ -27,6 +27,7 @@ from .geometry.accel import Accel
 from .integrators import transparency
 from .integrators.base import RenderContext
 from .lights.light_set import LightSet
+from .util.vectors import normalize
 
 MAX_SLICES = 32
 
@@ -163,9 +164,7 @@ def _place_deformed(out, motion, time, tri_obj):
         triangles[rows] = base + np.arange(3 * len(rows)).reshape(-1, 3)
         base += 3 * len(rows)
         if faces is not None:
-            n = np.cross(c[:, 1] - c[:, 0], c[:, 2] - c[:, 0])
-            length = np.linalg.norm(n, axis=1, keepdims=True)
-            faces[rows] = np.where(length > 1e-30, n / np.maximum(length, 1e-30), faces[rows])
+            faces[rows] = normalize(np.cross(c[:, 1] - c[:, 0], c[:, 2] - c[:, 0]))
     out.vertices = np.concatenate(vertices).astype(np.float32)
     out.triangles = triangles.astype(np.int32)
     out.normals = normals

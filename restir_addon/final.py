@@ -48,6 +48,7 @@ CHUNK_FRESH_FRAMES = None
 # Material, world and light previews (Properties editor): path-traced samples.
 PREVIEW_SAMPLES = 16
 
+
 def bounces(scene):
     """Render > Light Paths: the total and per-kind limits (as Cycles counts)."""
     s = scene.restir_gi

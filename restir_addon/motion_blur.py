@@ -18,6 +18,7 @@ import math
 import numpy as np
 
 from .sync.objects import read_object_mesh
+from .sync.reader import may_change
 
 STEPS = 3
 
@@ -36,30 +37,40 @@ def shutter_times(render, frame):
 def may_deform(obj):
     """Whether an object's mesh may change over the shutter and Cycles would
     blur it (Object > Motion Blur: Motion Blur and Deformation, both on by
-    default): modifiers, shape keys, or animation on it or its data."""
+    default): animation on it, its shape keys or its data, or an armature
+    that is animated. A static mesh with modifiers is not read again at
+    every step of every frame; camera_motion keeps only the meshes whose
+    object-space corners did change (the others move rigidly)."""
     o = obj.original if obj.original is not None else obj
     cycles = getattr(o, "cycles", None)
     if cycles is not None and not (getattr(cycles, "use_motion_blur", True)
                                    and getattr(cycles, "use_deform_motion", True)):
         return False
-    data = getattr(o, "data", None)
-    keys = getattr(data, "shape_keys", None)
-    return bool(len(o.modifiers)) or keys is not None or getattr(data, "animation_data", None) is not None
+    if may_change(o) or getattr(getattr(o, "data", None), "animation_data", None) is not None:
+        return True
+    return any(m.type == "ARMATURE" and may_change(getattr(m, "object", None)) for m in o.modifiers)
 
 
-def deformed_corners(obj, matrix):
-    """(T, 2, 3, 3): world-space corner positions and corner normals of an
+def object_corners(obj):
+    """(T, 2, 3, 3): object-space corner positions and corner normals of an
     evaluated object's triangles, as the scene reads them (sync/objects.py),
     or None."""
     mesh = read_object_mesh(obj)
     if mesh is None or len(mesh.triangles) == 0:
         return None
-    m = np.asarray(matrix, np.float64)
-    world = mesh.positions.astype(np.float64) @ m[:3, :3].T + m[:3, 3]
-    normal_m = np.linalg.pinv(m[:3, :3]).T
-    normals = np.asarray(mesh.normals, np.float64) @ normal_m.T
-    normals /= np.maximum(np.linalg.norm(normals, axis=2, keepdims=True), 1e-30)
-    return np.stack([world[mesh.triangles], normals], axis=1).astype(np.float32)
+    return np.stack([mesh.positions[mesh.triangles], mesh.normals], axis=1).astype(np.float32)
+
+
+def world_corners(steps, matrices):
+    """(K, T, 2, 3, 3) world-space corners of object-space ``steps`` (K, T, 2,
+    3, 3) placed by their matrices (K, 4, 4)."""
+    m = np.asarray(matrices, np.float64)
+    c = np.asarray(steps, np.float64)
+    p = np.einsum("kij,ktcj->ktci", m[:, :3, :3], c[:, :, 0]) + m[:, None, None, :3, 3]
+    normal_m = np.linalg.pinv(m[:, :3, :3]).transpose(0, 2, 1)
+    n = np.einsum("kij,ktcj->ktci", normal_m, c[:, :, 1])
+    n /= np.maximum(np.linalg.norm(n, axis=3, keepdims=True), 1e-30)
+    return np.stack([p, n], axis=2).astype(np.float32)
 
 
 def camera_motion(engine, depsgraph, warn, objects=True):
@@ -67,8 +78,9 @@ def camera_motion(engine, depsgraph, warn, objects=True):
     over the shutter, or None when it does not move; {object key: (STEPS, 4,
     4)} of every geometry instance (core/object_motion.py keeps those that
     move); {object key: (STEPS, T, 2, 3, 3)} world-space triangle corners
-    and corner normals of the objects that may deform. (None, {}, {}) when motion blur is off or the
-    shutter is zero. Leaves the scene evaluated at its frame again."""
+    and corner normals of the objects that deform. (None, {}, {}) when
+    motion blur is off or the shutter is zero. Leaves the scene evaluated at
+    its frame again."""
     from .export import instance_key                # noqa: PLC0415 (bpy-heavy)
     from .export.mesh import GEOMETRY_TYPES         # noqa: PLC0415
     scene = depsgraph.scene
@@ -92,12 +104,14 @@ def camera_motion(engine, depsgraph, warn, objects=True):
                     key = instance_key(inst, obj)
                     objects.setdefault(key, []).append(np.array(inst.matrix_world, np.float64))
                     if not inst.is_instance and may_deform(obj):
-                        deformed.setdefault(key, []).append(deformed_corners(obj, inst.matrix_world))
+                        deformed.setdefault(key, []).append(object_corners(obj))
     finally:
         engine.frame_set(frame, subframe)
     objects = {k: np.stack(v) for k, v in objects.items() if len(v) == len(times)}
-    deformed = {k: np.stack(v) for k, v in deformed.items()
-                if len(v) == len(times) and all(c is not None and c.shape == v[0].shape for c in v)}
+    deformed = {k: world_corners(np.stack(v), objects[k]) for k, v in deformed.items()
+                if k in objects and len(v) == len(times)
+                and all(c is not None and c.shape == v[0].shape for c in v)
+                and not all(np.allclose(c[:, 0], v[0][:, 0], atol=1e-7) for c in v)}
     if len(matrices) != len(times):
         return None, objects, deformed
     m = np.stack(matrices)

@@ -171,7 +171,7 @@ class SceneReader:
                                        is_holdout(obj, depsgraph.view_layer))
             for text in visibility_warnings(obj, depsgraph.view_layer):
                 self.warnings(text)
-            if _animated(inst.parent if inst.is_instance else obj):
+            if may_change(inst.parent if inst.is_instance else obj):
                 animated.add(key)
         for mkey in set(self._meshes) - used_meshes:
             del self._meshes[mkey]
@@ -276,7 +276,7 @@ def _stable_mesh_key(obj, owner):
     return key
 
 
-def _animated(obj):
+def may_change(obj):
     """Whether an object may move or deform with the frame: animation or
     drivers on it, its shape keys or a parent, or constraints."""
     o = obj.original if obj is not None else None

@@ -60,16 +60,20 @@ def _linear(ob):
             k.interpolation = "LINEAR"
 
 
-@pytest.mark.parametrize("position", ["CENTER", "START"])
-def test_camera_motion_blur_matches_cycles(addon, position):
+def _compare(scene, label):
+    """Ours against Cycles at SAMPLES: finite, mean within 2 %, block chi < 2.5."""
     from support.blender_util import compare_with_cycles
-    scene = _scene(position=position)
     r = compare_with_cycles(scene, SAMPLES, BOUNCES, block=8)
     assert np.isfinite(r["ours"]).all()
-    print(f"motion blur ({position.lower()}): mean ours {r['ours_mean']:.4f} cycles {r['cycles_mean']:.4f} "
+    print(f"{label}: mean ours {r['ours_mean']:.4f} cycles {r['cycles_mean']:.4f} "
           f"ratio {r['ratio']:.4f} block chi {r['chi']:.2f}")
     assert abs(r["ratio"] - 1.0) < 0.02
     assert r["chi"] < 2.5
+
+
+@pytest.mark.parametrize("position", ["CENTER", "START"])
+def test_camera_motion_blur_matches_cycles(addon, position):
+    _compare(_scene(position=position), f"motion blur ({position.lower()})")
 
 
 def test_motion_blur_can_fail(addon):
@@ -112,14 +116,7 @@ def _moving_object_scene(width=64, height=48):
 def test_object_motion_blur_matches_cycles(addon):
     """A box sliding and turning over the shutter: each sample at its own
     time slice (core/object_motion.py) against Cycles' object motion."""
-    from support.blender_util import compare_with_cycles
-    scene = _moving_object_scene()
-    r = compare_with_cycles(scene, SAMPLES, BOUNCES, block=8)
-    assert np.isfinite(r["ours"]).all()
-    print(f"object motion blur: mean ours {r['ours_mean']:.4f} cycles {r['cycles_mean']:.4f} "
-          f"ratio {r['ratio']:.4f} block chi {r['chi']:.2f}")
-    assert abs(r["ratio"] - 1.0) < 0.02
-    assert r["chi"] < 2.5
+    _compare(_moving_object_scene(), "object motion blur")
 
 
 def _deforming_scene(width=64, height=48, tilt=False):
@@ -158,14 +155,7 @@ def test_deformation_blur_matches_cycles(addon, tilt):
     """A shape key shearing or tilting a panel over the shutter: each time
     slice puts its triangles and their normals between the shutter's steps
     (core/object_motion.py)."""
-    from support.blender_util import compare_with_cycles
-    scene, _ = _deforming_scene(tilt=tilt)
-    r = compare_with_cycles(scene, SAMPLES, BOUNCES, block=8)
-    assert np.isfinite(r["ours"]).all()
-    print(f"deformation blur ({'tilt' if tilt else 'shear'}): mean ours {r['ours_mean']:.4f} cycles {r['cycles_mean']:.4f} "
-          f"ratio {r['ratio']:.4f} block chi {r['chi']:.2f}")
-    assert abs(r["ratio"] - 1.0) < 0.02
-    assert r["chi"] < 2.5
+    _compare(_deforming_scene(tilt=tilt)[0], f"deformation blur ({'tilt' if tilt else 'shear'})")
 
 
 def test_deformation_blur_can_fail(addon):
