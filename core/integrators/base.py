@@ -76,7 +76,7 @@ class ShadingFrame:
 
 
 def direct_light(ctx, surf, frame, seeds, bounce, mis=True, strategy_pdf=None, u_light=None,
-                 weigh=None, count=None, media=None):
+                 weigh=None, count=None, media=None, lights=None):
     """Next-event estimation at surface hits: one light sample and one shadow ray each.
 
     Returns the reflected radiance toward wo, (N, 3). With ``mis`` the sample is
@@ -90,17 +90,19 @@ def direct_light(ctx, surf, frame, seeds, bounce, mis=True, strategy_pdf=None, u
     count: (N,) light samples each point takes, of which this is one: the
     MIS weights count them all (count x pdf) against the one BSDF sample.
     media: core.integrators.media.Media whose transmittance the shadow rays carry.
+    lights: the light set to sample (default ctx.lights; one of its nee_sets).
     """
     n = len(surf)
     out = np.zeros((n, 3), np.float32)
-    if n == 0 or ctx.lights.count == 0:
+    lights = ctx.lights if lights is None else lights
+    if n == 0 or lights.count == 0:
         return out
     if u_light is None:
         u_sel = samplers.uniform(seeds, samplers.bounce_dim(bounce, samplers.D_LIGHT_SELECT))
         u = samplers.uniform2(seeds, samplers.bounce_dim(bounce, samplers.D_LIGHT_UV))
     else:
         u_sel, u = u_light
-    ls = ctx.lights.sample(surf.p, u_sel, u, surf.ns)
+    ls = lights.sample(surf.p, u_sel, u, surf.ns)
     wi_local = frame.local(surf, ls.wi)
     delta = mis and ls.delta.all()      # lights of no extent only (a sun of zero angle): weight one
     if mis and strategy_pdf is None and not delta:
@@ -108,7 +110,7 @@ def direct_light(ctx, surf, frame, seeds, bounce, mis=True, strategy_pdf=None, u
     else:
         f = bsdf.evaluate(frame.params, frame.wo_local, wi_local)
         pdf_b = strategy_pdf(wi_local) if mis and not delta else None
-    hidden = getattr(ctx.lights, "hidden_kinds", None)
+    hidden = getattr(lights, "hidden_kinds", None)
     if hidden is not None and ls.index is not None:
         f = _without_hidden_lobes(frame, wi_local, f, np.take(hidden, ls.index, axis=0))
     # The light must lie on the side of the surface the lobe sends it to:
@@ -128,7 +130,7 @@ def direct_light(ctx, surf, frame, seeds, bounce, mis=True, strategy_pdf=None, u
     rows = np.nonzero(live)[0]
     if len(rows) == 0:
         return out
-    free = getattr(ctx.lights, "shadowless", None)
+    free = getattr(lights, "shadowless", None)
     if free is not None and ls.index is not None:   # lights with Cast Shadow off: no shadow rays
         test = ~np.take(free, np.take(ls.index, rows))
         lit = rows[~test]

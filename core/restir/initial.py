@@ -88,6 +88,20 @@ def _world_split(lights, params):
     return weigh
 
 
+def _direct(ctx, surf, frame, seeds, u_light, params, wo_local, sampling, count, nee, lights):
+    """(N, 3) direct light of visible points: one NEE sample of each light set
+    of ``nee``, each weighed against the initial direction sampler; the
+    world's light split by ``lights`` (ctx.lights: world_share is the same
+    function wherever it is read)."""
+    d = None
+    for sets in nee:
+        one = direct_light(ctx, surf, frame, seeds, 0, mis=True, u_light=u_light,
+                           strategy_pdf=lambda w_l: _source_pdf(params, wo_local, w_l, sampling),
+                           weigh=_world_split(lights, params), count=count, lights=sets)
+        d = one if d is None else d + one
+    return d
+
+
 def _source_pdf(params, wo_local, wi_local, sampling):
     """Density of the initial direction sampler: the BSDF's own for glossy
     materials, else the chosen hemisphere warp."""
@@ -146,6 +160,8 @@ class InitialSampling:
     # so rays that escape are no samples of the reservoirs (they keep their
     # glossy lobe's share).
     sky_rays: bool = False
+    # True: each sun gets a light sample of its own (LightSet.nee_sets).
+    suns_apart: bool = True
 
 
 def initial_samples(ctx, gb, seed, frame, sample, how, stream_index=None):
@@ -215,9 +231,10 @@ def initial_samples(ctx, gb, seed, frame, sample, how, stream_index=None):
     # light samples left its noise as it was (the room of small emitters:
     # 16 light samples a point, direct light's variance 0.12 -> 0.108).
     countf = counts.astype(np.float32)
-    d = direct_light(ctx, surf, frame_sh, seeds, 0, mis=True, u_light=u_light,
-                     strategy_pdf=lambda w_l: _source_pdf(params, wo_l, w_l, sampling),
-                     weigh=_world_split(lights, params), count=countf)
+    # Suns apart (LightSet.nee_sets): a sample of each sun besides one of the
+    # other emitters; BSDF rays weigh what they find against the first set.
+    nee = lights.nee_sets() if how.suns_apart else [lights]
+    d = _direct(ctx, surf, frame_sh, seeds, u_light, params, wo_l, sampling, countf, nee, lights)
     extra = counts - 1
     if extra.any():
         # Samples k = 1 .. count - 1 of the points that take more; sample 0 is
@@ -233,9 +250,8 @@ def initial_samples(ctx, gb, seed, frame, sample, how, stream_index=None):
         u_light = samplers.stratified_light_uniforms(k, counts[rep], s_sel, s_uv)
         surf_k, frame_k = surf.subset(rep), frame_sh.subset(rep)
         params_k, wo_k = frame_k.params, frame_k.wo_local
-        more = direct_light(ctx, surf_k, frame_k, seeds[rep], 0, mis=True, u_light=u_light,
-                            strategy_pdf=lambda w_l: _source_pdf(params_k, wo_k, w_l, sampling),
-                            weigh=_world_split(lights, params_k), count=countf[rep])
+        more = _direct(ctx, surf_k, frame_k, seeds[rep], u_light, params_k, wo_k, sampling, countf[rep],
+                       nee, lights)
         for c in range(3):
             d[:, c] += np.bincount(rep, weights=more[:, c], minlength=len(index)).astype(np.float32)
         d = scale(d, 1.0 / countf)
@@ -248,7 +264,7 @@ def initial_samples(ctx, gb, seed, frame, sample, how, stream_index=None):
     # ... plus the emitters the sample ray finds (analytic lights, emissive
     # triangles), weighted against the same NEE (lights' selection).
     if lights.n_analytic:
-        scatter_add(d, rows, weight_r * lights.emitted_along(o, wi_r, hits.t, pdf_bsdf=pdf[rows] / countf[rows],
+        scatter_add(d, rows, weight_r * nee[0].emitted_along(o, wi_r, hits.t, pdf_bsdf=pdf[rows] / countf[rows],
                                                              kinds=None if kinds is None else kinds[rows],
                                                              p=gather(surf.p, rows), n=gather(surf.ns, rows)))
     surf2, hit_idx = surface_hits(scene, o, wi_r, hits)
@@ -256,7 +272,7 @@ def initial_samples(ctx, gb, seed, frame, sample, how, stream_index=None):
     if len(lights.tri_index) or materials.shading(scene).emitting:
         le = materials.surface_emission(scene, surf2, lights)
         if (row_max(le) > 0).any():
-            pdf_l = lights.pdf_triangle(surf2.prim, gather(surf.p, rows2), surf2.p, -surf2.wo,
+            pdf_l = nee[0].pdf_triangle(surf2.prim, gather(surf.p, rows2), surf2.p, -surf2.wo,
                                         gather(surf.ns, rows2))
             scatter_add(d, rows2, scale(gather(weight, rows2) * le,
                                         power_heuristic(pdf[rows2], pdf_l * countf[rows2])))
@@ -292,7 +308,7 @@ def initial_samples(ctx, gb, seed, frame, sample, how, stream_index=None):
         pm = index[miss]
         wi_m = gather(wi, miss)
         le = lights.world_radiance(wi_m)
-        w_b = power_heuristic(pdf[miss], lights.pdf_world(wi_m, gather(surf.ns, miss)) * countf[miss])
+        w_b = power_heuristic(pdf[miss], nee[0].pdf_world(wi_m, gather(surf.ns, miss)) * countf[miss])
         lo_glossy = np.concatenate([lo_glossy, scale(le, w_b).astype(np.float32)])
         rows2, pix = np.concatenate([rows2, miss]), np.concatenate([pix, pm])
     if len(miss) and ctx.lights.environment is not None and not sky_rays:
