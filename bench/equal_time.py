@@ -63,7 +63,9 @@ fit in that time (its row follows), and its MSE is taken to our time as
 
 Writes bench/out/equal_time.md and bench/out/equal_time_<scene>_<camera>.png
 (ours raw | + OIDN | + denoiser per mode | Cycles + OIDN at the biased +
-denoiser frame time, its nearest rendered spp | reference); --quick (8
+denoiser frame time, its nearest rendered spp | reference) and
+bench/out/finished_<scene>_<camera>.png (the finished frames: ours biased +
+denoiser | Cycles + OIDN at its time | reference); --quick (8
 frames, reference 64 spp) writes *_quick.* instead. What Blender prints goes
 to bench/out/blender.log. --no-cycles leaves out our path tracing and Cycles
 but the reference (no gains then): ours against ours, quickly.
@@ -402,6 +404,12 @@ def main():
             png = OUT / f"equal_time_{name}_{camera}{suffix}.png"
             write_png(png, np.concatenate(list(pictures.values()), axis=1))
             print(f"  picture: {' | '.join(pictures)}", flush=True)
+            done = [k for k in pictures if k.endswith(" + denoiser")][:1] \
+                + [k for k in pictures if k.startswith("Cycles + OIDN")] + ["reference"]
+            if len(done) == 3:      # the finished frames: ours | Cycles + OIDN at our time | reference
+                write_png(OUT / f"finished_{name}_{camera}{suffix}.png",
+                          np.concatenate([pictures[k] for k in done], axis=1))
+                print(f"  finished picture: {' | '.join(done)}", flush=True)
             if camera == "moving" and args.lag_modes:
                 lags += lag_rows(name, args, curve)
     text = table(results, args, PT_FRAMES, CYCLES_FRAMES)

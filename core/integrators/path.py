@@ -55,6 +55,10 @@ def radiance_from_surface(ctx, surf, seeds, bounce0, max_bounces, frame=None, co
     track = binding(max_bounces)
     by_kind = getattr(ctx.accel, "per_kind_visibility", False)
     want_kinds = track or by_kind or getattr(ctx.lights, "hidden_kinds", None) is not None
+    # Suns apart (LightSet.nee_sets): a light sample of each sun besides one
+    # of the other emitters; BSDF rays weigh what they find against the latter.
+    nee = ctx.lights.nee_sets()
+    lights = nee[0]
     if track:
         counts = np.zeros((n, 3), np.int16) if counts is None else np.array(counts, np.int16)
         over = (counts > limits).any(axis=1)        # reached by a ray past a limit: emission only
@@ -71,7 +75,8 @@ def radiance_from_surface(ctx, surf, seeds, bounce0, max_bounces, frame=None, co
         if first is not None and bounce == bounce0:
             (u_lobe, u), (u_sel, u_uv) = first
             u_dir, u_light = (u_lobe[alive], gather(u, alive)), (u_sel[alive], gather(u_uv, alive))
-        scatter_add(L, alive, beta * direct_light(ctx, surf, frame, s, bounce, u_light=u_light))
+        for sets in nee:
+            scatter_add(L, alive, beta * direct_light(ctx, surf, frame, s, bounce, u_light=u_light, lights=sets))
         kinds = None
         if want_kinds:
             wi, weight, pdf, valid, kinds = sample_continuation(ctx, surf, frame, s, bounce, kinds=True, u=u_dir)
@@ -97,25 +102,25 @@ def radiance_from_surface(ctx, surf, seeds, bounce0, max_bounces, frame=None, co
         hits = ctx.accel.intersect_closest(o, wi, kinds=kinds) if by_kind \
             else ctx.accel.intersect_closest(o, wi)
         # Emission found by the BSDF rays, each weighted against NEE.
-        if ctx.lights.n_analytic and ctx.lights.analytic.crossable():
-            scatter_add(L, alive, gather(beta, keep) * ctx.lights.emitted_along(
+        if lights.n_analytic and lights.analytic.crossable():
+            scatter_add(L, alive, gather(beta, keep) * lights.emitted_along(
                 o, wi, hits.t, pdf_bsdf=pdf, kinds=kinds, p=gather(surf.p, keep), n=gather(surf.ns, keep)))
         miss = np.nonzero(~hits.hit)[0]
-        if len(miss) and ctx.lights.environment is not None:
+        if len(miss) and lights.environment is not None:
             # n: the normal NEE sampled a constant world about.
             rows = keep[miss]
-            scatter_add(L, alive[miss], escaped_radiance(ctx.lights, gather(wi, miss), pdf[miss],
+            scatter_add(L, alive[miss], escaped_radiance(lights, gather(wi, miss), pdf[miss],
                                                          gather(surf.ns, rows), gather(beta, rows)))
         prev = surf
         surf, idx = surface_hits(scene, o, wi, hits)
         frame = None
         rows = keep[idx]
         alive, beta, pdf = alive[idx], gather(beta, rows), pdf[idx]
-        if len(ctx.lights.tri_index) or materials.shading(scene).emitting:
-            le = materials.surface_emission(scene, surf, ctx.lights)
+        if len(lights.tri_index) or materials.shading(scene).emitting:
+            le = materials.surface_emission(scene, surf, lights)
             emissive = np.nonzero(row_max(le) > 0)[0]
             if len(emissive):
-                pdf_l = ctx.lights.pdf_triangle(surf.prim[emissive], gather(prev.p, rows[emissive]),
+                pdf_l = lights.pdf_triangle(surf.prim[emissive], gather(prev.p, rows[emissive]),
                                                 gather(surf.p, emissive), -gather(surf.wo, emissive),
                                                 gather(prev.ns, rows[emissive]))
                 w = power_heuristic(pdf[emissive], pdf_l)

@@ -25,12 +25,13 @@ Suns apart (``nee_sets``): a sun is weighed by its irradiance over the whole
 scene, so in a room lit through a window by a sun and by lamps nearly every
 shadow ray goes to the sun, which most of the room does not see (the corpus
 glossy interior: 94 % of the choices, its walls' direct light the frame's
-noise). Where the visible points' NEE asks for it, each sun (at most
-SUNS_APART of them) gets a light sample of its own, and the other emitters
-are chosen among themselves; the estimate is the sum over these sets, so it
-stays unbiased. Suns are NEE's alone (no ray crosses one: ``crossable``),
-so what BSDF rays find is weighed against the first set, which chooses
-every other emitter.
+noise). So the NEE of the visible points (core/restir/initial.py) and of
+paths (core/integrators/path.py) gives each sun (at most SUNS_APART of them)
+a light sample of its own, and chooses the other emitters among
+themselves; the estimate is the sum over these sets, so it stays
+unbiased. Suns are NEE's alone (no ray crosses one: ``crossable``), so
+what BSDF rays find is weighed against the first set, which chooses every
+other emitter.
 """
 
 import copy

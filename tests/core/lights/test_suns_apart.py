@@ -14,7 +14,7 @@ from restir_gi.core.restir.gbuffer import trace_gbuffer
 from restir_gi.core.restir.initial import InitialSampling, initial_samples
 from restir_gi.core.scene import LIGHT_AREA, LIGHT_SUN, Lights
 from restir_gi.core.util.vectors import luminance
-from support.scenes import cornell_box
+from support.scenes import cornell_box, path_samples
 
 AREA = {"kind": LIGHT_AREA, "position": (0, 0, 1.98), "direction": (0, 0, -1), "power": (60.0,) * 3,
         "size_u": 0.5, "size_v": 0.5}
@@ -88,3 +88,22 @@ def test03_direct_light_keeps_its_mean_and_loses_the_suns_noise():
     assert abs(z) < 3.3
     assert 0.2 < hidden.mean() < 0.9
     assert ratio < 0.3
+
+
+@pytest.mark.slow
+def test04_path_tracing_keeps_its_mean_and_loses_the_suns_noise(monkeypatch):
+    """Paths (camera_pass: every bounce's NEE) with suns apart against the
+    sun chosen among the lamps: the image's mean agrees, and the variance of
+    the pixels' paths falls. Measured (16x16, 3 bounces, 96 samples): z =
+    0.24, variance per pixel 0.49 of the choice's."""
+    scene = box([AREA, sun()])
+    apart = path_samples(scene, 96, 3)
+    monkeypatch.setattr(LightSet, "nee_sets", lambda self: [self])
+    chosen = path_samples(scene, 96, 3)
+    apart, chosen = (x.mean(axis=1).reshape(96, -1) for x in (apart, chosen))    # (sample, pixel)
+    a, b = apart.mean(axis=1), chosen.mean(axis=1)      # one image mean per sample
+    z = (a.mean() - b.mean()) / np.sqrt(a.var(ddof=1) / len(a) + b.var(ddof=1) / len(b))
+    ratio = apart.var(axis=0).sum() / chosen.var(axis=0).sum()
+    print(f"paths with suns apart: z = {z:.2f}, variance {ratio:.2f} of the choice's")
+    assert abs(z) < 3.3
+    assert ratio < 0.8
