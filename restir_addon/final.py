@@ -336,7 +336,9 @@ def _render_view(engine, depsgraph, view, report=True, stream=None, preview=Fals
         # previous frame): its ReSTIR state is let go after its last frame,
         # before the images are copied to Blender, where a still peaks.
         stream.restir.keep_history = bool(engine.is_animation)
-        continuing = engine.is_animation and stream.last_frame == scene.frame_current - 1
+        # An animation reports what the frames' exports warn about once, with
+        # the first frame that finds it (in every mode).
+        continuing = engine.is_animation and stream.reported_frame == scene.frame_current - 1
         frame_scene = stream.frame_scene
         # A later view of the frame changes only the camera of the exported scene.
         camera = view_camera(engine, depsgraph, view, frame_scene.warnings)
@@ -352,6 +354,8 @@ def _render_view(engine, depsgraph, view, report=True, stream=None, preview=Fals
                 if moving or deformed else None
         for text in frame_scene.new_warnings(repeat=not continuing) if report and not preview else ():
             engine.report({"WARNING"}, text)
+        if report and not preview:
+            stream.reported_frame = scene.frame_current if engine.is_animation else None
         core_scene, ctx = frame_scene.scene, frame_scene.context
         if not has_camera:
             engine.report({"ERROR"}, "The scene has no camera: nothing to render")

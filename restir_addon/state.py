@@ -26,6 +26,7 @@ class Stream:
         self.last_frame = None
         self.last_camera = None     # name of the camera object of that frame
         self.last_view = None       # the core.Camera it was rendered with (final.jumped)
+        self.reported_frame = None  # animation frame whose export warnings were reported last
         self.frame_scene = frame_scene if frame_scene is not None else FrameScene()
         self.timings = {}           # seconds in each stage of the latest frame (benchmarks, the log)
 

@@ -344,12 +344,20 @@ def test_animation_writes_one_file_per_frame(addon, reports, tmp_path, mode):
     for frame, x in ((1, -1.2), (2, 0.0), (3, 1.2)):
         glow.location = (x, 0, 0)
         glow.keyframe_insert("location", frame=frame)
+    # Out of view behind the camera, with a node the engine does not render:
+    # the animation names it once, not with every frame.
+    toon = bpy.data.materials.new("Cartoon")
+    tree = toon.node_tree
+    tree.nodes.remove(tree.nodes["Principled BSDF"])
+    tree.links.new(tree.nodes.new("ShaderNodeBsdfToon").outputs[0], tree.nodes["Material Output"].inputs["Surface"])
+    add_mesh("Toon", *rect(-0.1, 0.1, -0.1, 0.1, z=9.0), mat=toon)
     scene.frame_start, scene.frame_end = 1, 3
     settings = scene.render.image_settings
     settings.file_format = "OPEN_EXR"
     settings.color_depth = "32"
     scene.render.filepath = str(tmp_path / "frame_####")
     bpy.ops.render.render(animation=True)
+    assert len([m for m in reports.of("WARNING") if "Toon BSDF" in m]) == 1, reports.log
 
     files = sorted(glob.glob(str(tmp_path / "frame_*.exr")))
     assert [os.path.basename(f) for f in files] == ["frame_0001.exr", "frame_0002.exr",
