@@ -59,6 +59,7 @@ def _export_camera(depsgraph, warn):
         projection = "PERSP"
     if scene.render.pixel_aspect_x != scene.render.pixel_aspect_y:
         warn("Non-square pixel aspect is not supported; rendering with square pixels")
+    _warn_blind(cam_obj, data, warn)
     return Camera(
         to_world=np.array(cam_obj.matrix_world, np.float32),
         projection=projection,
@@ -73,6 +74,18 @@ def _export_camera(depsgraph, warn):
         clip_end=float(data.clip_end),
         **pano, **depth_of_field(cam_obj, data),
     )
+
+
+def _warn_blind(cam_obj, data, warn):
+    """Say why a camera sees nothing, where its settings make it so (the
+    image stays black, as in Cycles)."""
+    if data.type != "PANO" and data.clip_start >= data.clip_end:
+        warn(f"Camera '{cam_obj.name}': Clip Start ({data.clip_start:g} m) is not before Clip End "
+             f"({data.clip_end:g} m), so nothing is visible")
+    axes = np.array(cam_obj.matrix_world, np.float64)[:3, :3]
+    if not np.isfinite(axes).all() or abs(np.linalg.det(axes)) < 1e-18:
+        warn(f"Camera '{cam_obj.name}' has a scale of zero (or a flat transform), so nothing is visible; "
+             f"set its scale to 1")
 
 
 def panorama_settings(data, warn):

@@ -125,3 +125,23 @@ def test_no_camera(addon):
     s, has_camera = addon.restir_addon.export.export_scene(bpy.context.evaluated_depsgraph_get(), 8, 8)
     assert not has_camera
     assert s.triangle_count == 2
+
+
+@pytest.mark.parametrize("case", ["clipping", "scale"])
+def test_a_blind_camera_says_why(addon, case):
+    """Clip Start beyond Clip End, or a camera scaled to zero, sees nothing:
+    the export names the camera and the reason; an ordinary camera says
+    nothing."""
+    import bpy
+    fresh()
+    add_mesh("obj", *QUAD)
+    cam = _camera("Eye", clip_start=1.0, clip_end=100.0)
+    cam.location = (0, 0, 5)
+    assert not [w for w in export(addon, 8, 8).warnings if "Eye" in w]
+    if case == "clipping":
+        cam.data.clip_start, cam.data.clip_end = 50.0, 10.0
+    else:
+        cam.scale = (0.0, 0.0, 0.0)
+    bpy.context.view_layer.update()
+    said = [w for w in export(addon, 8, 8).warnings if "Eye" in w]
+    assert len(said) == 1 and ("Clip Start" in said[0] if case == "clipping" else "scale of zero" in said[0]), said
