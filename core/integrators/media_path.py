@@ -51,14 +51,23 @@ def volume_limit(max_bounces):
 def _medium_light(ctx, media, p, d, g, seeds, bounce):
     """Next-event estimation at medium points p (N, 3) reached along d
     (N, 3), anisotropy g (N,): (N, 3) radiance scattered toward -d per unit
-    of the scattering coefficient (the caller's weight holds sigma_s)."""
+    of the scattering coefficient (the caller's weight holds sigma_s); one
+    sample of each of the lights' nee_sets, summed."""
+    out = np.zeros((len(p), 3), np.float32)
+    for lights in ctx.lights.nee_sets():
+        out += _medium_light_of(ctx, lights, media, p, d, g, seeds, bounce)
+    return out
+
+
+def _medium_light_of(ctx, lights, media, p, d, g, seeds, bounce):
+    """_medium_light's sample of one light set."""
     n = len(p)
     out = np.zeros((n, 3), np.float32)
-    if n == 0 or ctx.lights.count == 0:
+    if n == 0 or lights.count == 0:
         return out
     u_sel = samplers.uniform(seeds, samplers.bounce_dim(bounce, samplers.D_LIGHT_SELECT))
     u = samplers.uniform2(seeds, samplers.bounce_dim(bounce, samplers.D_LIGHT_UV))
-    ls = ctx.lights.sample(p, u_sel, u, None)
+    ls = lights.sample(p, u_sel, u, None)
     f = hg_pdf(dot(d, ls.wi), g)
     w = np.where(ls.delta, 1.0, power_heuristic(ls.pdf, f))
     with np.errstate(invalid="ignore", divide="ignore", over="ignore"):
@@ -95,7 +104,10 @@ def _by_origin(fn, prev_n, from_medium, rows):
 def camera_radiance(ctx, media, o, d, tmax, hits, seeds, max_bounces):
     """(N, 3) radiance along camera rays (o, d, tmax) whose closest hits are
     ``hits``, through the scene's media."""
-    scene, lights = ctx.scene, ctx.lights
+    # Suns apart (LightSet.nee_sets): NEE sums a sample of each set; what
+    # rays find is weighed against the first.
+    scene, nee = ctx.scene, ctx.lights.nee_sets()
+    lights = nee[0]
     n = len(o)
     L = np.zeros((n, 3), np.float32)
     limits = np.asarray(per_kind(max_bounces), np.int16)
@@ -168,7 +180,9 @@ def camera_radiance(ctx, media, o, d, tmax, hits, seeds, max_bounces):
         if len(sub):
             frame = ShadingFrame.at(scene, surf, camera_ray=camera)
             b_s = gather(beta, sub)
-            scatter_add(L, alive[sub], b_s * direct_light(ctx, surf, frame, s[sub], bounce, media=media))
+            for sets in nee:
+                scatter_add(L, alive[sub], b_s * direct_light(ctx, surf, frame, s[sub], bounce, media=media,
+                                                              lights=sets))
             wi, weight, pdf_s, valid, kinds = sample_continuation(ctx, surf, frame, s[sub], bounce, kinds=True)
             b_s = b_s * weight
             c = counts[sub]

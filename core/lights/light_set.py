@@ -26,7 +26,8 @@ scene, so in a room lit through a window by a sun and by lamps nearly every
 shadow ray goes to the sun, which most of the room does not see (the corpus
 glossy interior: 94 % of the choices, its walls' direct light the frame's
 noise). So the NEE of the visible points (core/restir/initial.py) and of
-paths (core/integrators/path.py) gives each sun (at most SUNS_APART of them)
+paths (core/integrators/path.py, and media_path.py at surface and medium
+points) gives each sun (at most SUNS_APART of them)
 a light sample of its own, and chooses the other emitters among
 themselves; the estimate is the sum over these sets, so it stays
 unbiased. Suns are NEE's alone (no ray crosses one: ``crossable``), so
