@@ -13,6 +13,7 @@ import numpy as np
 
 ROOT = Path(__file__).resolve().parent.parent
 OUT = ROOT / "bench" / "out"
+SCALE = 1.0         # render_frames renders at this multiple of each file's resolution
 
 
 def load_addon():
@@ -145,6 +146,8 @@ def render_frames(blend, frames, setup, pin=None, log_path=None, scene_start=Non
         if pin is not None:
             pin_camera(scene, pin)
         setup(scene)
+        if SCALE != 1.0:
+            scene.render.resolution_percentage = max(1, round(scene.render.resolution_percentage * SCALE))
         if scene_start is None:
             scene.frame_start, scene.frame_end, scene.frame_step = frames[0], frames[-1], 1
         else:

@@ -4,7 +4,7 @@ finished by a denoiser.
 
     .venv/bin/python bench/equal_time.py [--scenes room,slit] [--frames 32]
         [--ref-spp 1024] [--modes biased,unbiased] [--cameras still,moving] [--quick]
-        [--no-cycles] [--no-oidn] [--lag-modes biased] [--stills 16,64]
+        [--no-cycles] [--no-oidn] [--lag-modes biased] [--stills 16,64] [--scale 2]
 
 Needs requirements-bench.txt (pyoidn, flip-evaluator) unless --no-oidn.
 Everything renders as a user renders: the add-on loaded from this tree, the
@@ -66,7 +66,8 @@ Writes bench/out/equal_time.md and bench/out/equal_time_<scene>_<camera>.png
 denoiser frame time, its nearest rendered spp | reference) and
 bench/out/finished_<scene>_<camera>.png (the finished frames: ours biased +
 denoiser | Cycles + OIDN at its time | reference); --quick (8
-frames, reference 64 spp) writes *_quick.* instead. What Blender prints goes
+frames, reference 64 spp) writes *_quick.* instead, and --scale S (the
+files' resolution times S: 2 gives 640x360) *_xS.*. What Blender prints goes
 to bench/out/blender.log. --no-cycles leaves out our path tracing and Cycles
 but the reference (no gains then): ours against ours, quickly.
 """
@@ -81,6 +82,7 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
+import bench_common
 from bench_common import OUT, ROOT, load_addon, luminance, render_frames
 import finished
 from finished import AUX, CYCLES_OIDN_SPP, Curve
@@ -104,6 +106,8 @@ def parse_args():
     ap.add_argument("--modes", default="biased,unbiased")
     ap.add_argument("--cameras", default="still,moving")
     ap.add_argument("--quick", action="store_true", help="smoke run: 8 frames, 64-spp references")
+    ap.add_argument("--scale", type=float, default=1.0,
+                    help="render at this multiple of the files' resolution (2: 640x360)")
     ap.add_argument("--stills", default="16,64",
                     help="warm-up frames of the unbiased still renders (F12) on the still camera; '' for none")
     ap.add_argument("--no-cycles", action="store_true",
@@ -342,8 +346,8 @@ def scene_size(blend):
     import bpy
     bpy.ops.wm.open_mainfile(filepath=str(blend), load_ui=False)
     r = bpy.context.scene.render
-    return (int(r.resolution_x * r.resolution_percentage / 100),
-            int(r.resolution_y * r.resolution_percentage / 100))
+    percent = max(1, round(r.resolution_percentage * bench_common.SCALE))
+    return int(r.resolution_x * percent / 100), int(r.resolution_y * percent / 100)
 
 
 # ---------------------------------------------------------------- lag
@@ -394,7 +398,8 @@ def main():
     load_addon()
     from restir_gi.core.camera.film import write_png
     OUT.mkdir(parents=True, exist_ok=True)
-    suffix = "_quick" if args.quick else ""
+    bench_common.SCALE = args.scale
+    suffix = ("_quick" if args.quick else "") + (f"_x{args.scale:g}" if args.scale != 1.0 else "")
     results, lags = {}, []
     for name in args.scenes:
         for camera in args.cameras:
