@@ -10,7 +10,8 @@ def fmt(v, spec, suffix=""):
 
 
 def table(results, args, pt_frames, cycles_frames):
-    lines = [f"Corpus at 320x180 (files' settings: 12/4/4/12 bounces in both engines, no clamping "
+    w, h = round(320 * getattr(args, "scale", 1.0)), round(180 * getattr(args, "scale", 1.0))
+    lines = [f"Corpus at {w}x{h} (files' settings: 12/4/4/12 bounces in both engines, no clamping "
              f"in Cycles), frame N = {args.frames}, reference Cycles {args.ref_spp} spp. "
              f"ms per frame: median of frames 2..N (PT: {pt_frames} frames, Cycles: "
              f"{cycles_frames} frames, camera held at frame N; reference: its single frame). "
