@@ -161,15 +161,20 @@ def at_view(params, wo):
     pick = (lambda v: v) if rows is None else (lambda v: np.take(v, rows))
     spread = (lambda v: v) if rows is None else (lambda v: scatter(np.zeros(n, v.dtype), rows, v))
     a, b = albedo_terms(np.sqrt(pick(params.alpha)), pick(cos))
-    if layered:
-        lf0 = pick(params.layer_f0)
-        e_layer = spread(np.clip(lf0 * a + dielectric_f90(lf0) * b, 0.0, 1.0))
-        params.diffuse = np.maximum(params.diffuse - scale(params.layered, e_layer), 0.0).astype(np.float32)
     a, b = spread(a), spread(b)
     e1 = np.maximum(a + b, 1e-3)
     lost = (1.0 - e1) / e1
     if params.spec_ss is not None:
         lost = lost * (1.0 - params.spec_ss)
+    if layered:
+        # The layer's albedo with what multiple scattering keeps (the boost
+        # below): at a normal reflectance near one (an IOR near 0) the layer
+        # reflects everything and leaves the base nothing, as in Cycles.
+        lf0 = params.layer_f0
+        lf90 = dielectric_f90(lf0)
+        e_layer = (lf0 * a + lf90 * b) * (1.0 + (lf0 + (lf90 - lf0) / np.float32(21.0)) * lost)
+        e_layer = np.clip(e_layer, 0.0, 1.0).astype(np.float32)
+        params.diffuse = np.maximum(params.diffuse - scale(params.layered, e_layer), 0.0).astype(np.float32)
     boost = (1.0 + scale(f_avg, lost)).astype(np.float32)
     params.f0 = (params.f0 * boost).astype(np.float32)
     params.f90 = (f90 * boost).astype(np.float32)

@@ -380,7 +380,18 @@ def gltf_legacy(scene):
         bpy.data.objects[name].location.z += 0.002
 
 
+def principled_ior(scene):
+    """Principled BSDFs by their IOR, as Cycles reads it: 0 on the boxes
+    (older glTF imports wrote it; the specular layer then reflects
+    everything, coat or not), 3 on the back wall (a normal reflectance of
+    0.25, most of which the diffuse base below it loses)."""
+    assign(["TallBox", "ShortBox"], principled("IORZero", **{"Base Color": (0.2, 0.6, 0.1, 1.0), "IOR": 0.0,
+                                                            "Roughness": 0.5, "Coat Weight": 0.25}))
+    assign(["BackWall"], principled("IORThree", **{"Base Color": (0.7, 0.3, 0.2, 1.0), "IOR": 3.0,
+                                                   "Roughness": 0.4}))
+
+
 FAMILIES = {"image": image, "procedural": procedural, "brick": brick, "noise": noise, "shaders": shaders, "normals": normals,
             "attributes": attributes, "emission": emission, "glass": glass, "alpha": alpha,
             "hdri": hdri, "sheen": sheen, "anisotropic": anisotropic, "gltf_legacy": gltf_legacy,
-            "sheen_node": sheen_node}
+            "sheen_node": sheen_node, "principled_ior": principled_ior}

@@ -64,7 +64,7 @@ def _c(x):
 
 
 def _f0_from_ior(ior):
-    ior = np.maximum(f32(ior), 1e-3)
+    ior = np.maximum(f32(ior), 0.0)
     return ((ior - 1) / (ior + 1)) ** 2
 
 
@@ -73,7 +73,12 @@ def principled(inp, geom, n, sh):
     base = np.clip(inp.color("Base Color", (0.8, 0.8, 0.8)), 0, None)
     metallic = np.clip(inp.float("Metallic", 0.0), 0, 1)
     rough = np.clip(inp.float("Roughness", 0.5), 0, 1)
-    ior = np.maximum(inp.float("IOR", 1.5), 1.0)
+    # The specular layer's Fresnel takes an IOR below one as Cycles does: the
+    # normal reflectance of 1 / IOR, and a mirror at 0 (older glTF imports
+    # wrote 0). Cycles' reflection beyond the critical angle of 0 < IOR < 1
+    # is not reproduced. The glass part refracts with an IOR of at least one.
+    layer_ior = np.maximum(inp.float("IOR", 1.5), 0.0)
+    ior = np.maximum(layer_ior, 1.0)
     alpha = np.clip(inp.float("Alpha", 1.0), 0, 1)
     level = np.maximum(inp.float("Specular IOR Level", 0.5), 0)
     spec_tint = np.clip(inp.color("Specular Tint", (1, 1, 1)), 0, None)
@@ -84,7 +89,7 @@ def principled(inp, geom, n, sh):
     normal = _normal(inp, geom)
 
     dielectric = 1 - metallic
-    f0_d = np.minimum(_f0_from_ior(ior) * 2 * level, 1.0)
+    f0_d = np.minimum(_f0_from_ior(layer_ior) * 2 * level, 1.0)
     f0_d = _c(f0_d) * spec_tint
     # As Cycles: a base colour above one brightens the diffuse part only; the
     # metal's f0 and the glass's tint take it clamped to one.
