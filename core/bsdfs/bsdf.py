@@ -163,16 +163,16 @@ def at_view(params, wo):
     a, b = albedo_terms(np.sqrt(pick(params.alpha)), pick(cos))
     a, b = spread(a), spread(b)
     e1 = np.maximum(a + b, 1e-3)
-    lost = (1.0 - e1) / e1
-    if params.spec_ss is not None:
-        lost = lost * (1.0 - params.spec_ss)
+    lost_ms = (1.0 - e1) / e1
+    lost = lost_ms if params.spec_ss is None else lost_ms * (1.0 - params.spec_ss)
     if layered:
-        # The layer's albedo with what multiple scattering keeps (the boost
-        # below): at a normal reflectance near one (an IOR near 0) the layer
-        # reflects everything and leaves the base nothing, as in Cycles.
+        # The layer's albedo with what multiple scattering keeps, whichever
+        # distribution the layer scatters by (Cycles estimates it so for
+        # layering): at a normal reflectance near one (an IOR near 0) the
+        # layer leaves the base nothing, GGX or Multiscatter GGX.
         lf0 = params.layer_f0
         lf90 = dielectric_f90(lf0)
-        e_layer = (lf0 * a + lf90 * b) * (1.0 + (lf0 + (lf90 - lf0) / np.float32(21.0)) * lost)
+        e_layer = (lf0 * a + lf90 * b) * (1.0 + (lf0 + (lf90 - lf0) / np.float32(21.0)) * lost_ms)
         e_layer = np.clip(e_layer, 0.0, 1.0).astype(np.float32)
         params.diffuse = np.maximum(params.diffuse - scale(params.layered, e_layer), 0.0).astype(np.float32)
     boost = (1.0 + scale(f_avg, lost)).astype(np.float32)
