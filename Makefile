@@ -45,7 +45,8 @@ PYTEST_ARGS ?=
 # packages built, validated, installed and rendered with (tools/render.py),
 # the engine's final renders and animations, chunk warm-ups, tools/farm.py's
 # chunks. CI runs them on the 3.11 line (the whole suite on the current one).
-SUBSET_TESTS := tests/addon/test_extension.py tests/addon/test_addon_render.py tests/addon/test_addon_chunks.py \
+SUBSET_TESTS := tests/addon/test_extension.py tests/addon/test_addon_render.py tests/addon/test_addon_animation.py \
+	tests/addon/test_addon_chunks.py \
 	tests/tools/test_farm.py
 
 EXT_ID      := $(shell sed -n 's/^id *= *"\(.*\)"/\1/p' blender_manifest.toml)
