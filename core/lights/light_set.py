@@ -208,7 +208,8 @@ class LightSet:
         if self._nee_sets is None:
             sets = [self]
             suns = np.nonzero((self._groups == _SUN) & (self._weights > 0))[0]
-            rest = np.where(np.isin(np.arange(len(self._weights)), suns), 0.0, self._weights)
+            rest = self._weights.copy()
+            rest[suns] = 0.0
             if 0 < len(suns) <= SUNS_APART and rest.sum() > 0:
                 sets = [self._view(rest, keep_grid=True)]
                 for i in suns:

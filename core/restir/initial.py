@@ -160,8 +160,6 @@ class InitialSampling:
     # so rays that escape are no samples of the reservoirs (they keep their
     # glossy lobe's share).
     sky_rays: bool = False
-    # True: each sun gets a light sample of its own (LightSet.nee_sets).
-    suns_apart: bool = True
 
 
 def initial_samples(ctx, gb, seed, frame, sample, how, stream_index=None):
@@ -233,7 +231,7 @@ def initial_samples(ctx, gb, seed, frame, sample, how, stream_index=None):
     countf = counts.astype(np.float32)
     # Suns apart (LightSet.nee_sets): a sample of each sun besides one of the
     # other emitters; BSDF rays weigh what they find against the first set.
-    nee = lights.nee_sets() if how.suns_apart else [lights]
+    nee = lights.nee_sets()
     d = _direct(ctx, surf, frame_sh, seeds, u_light, params, wo_l, sampling, countf, nee, lights)
     extra = counts - 1
     if extra.any():

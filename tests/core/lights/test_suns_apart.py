@@ -61,13 +61,17 @@ def test02_a_sun_alone_or_many_suns_keep_one_set(rows):
 def runs(scene, count, apart):
     """Luminance of the direct light of the visible points over ``count``
     independent frames, (count, points)."""
-    how = InitialSampling(0, light_samples=1, suns_apart=apart)
+    how = InitialSampling(0, light_samples=1)
     ctx = RenderContext.build(scene)
+    patch = pytest.MonkeyPatch()
     try:
+        if not apart:       # the sun chosen among the lamps by power
+            patch.setattr(LightSet, "nee_sets", lambda self: [self])
         gb = trace_gbuffer(ctx, 0, 0, PixelFilter(0.0), jitter=False)
         return np.stack([luminance(initial_samples(ctx, gb, 5, f, 0, how)[1])[gb.index]
                          for f in range(count)]).astype(np.float64)
     finally:
+        patch.undo()
         ctx.close()
 
 
