@@ -33,15 +33,16 @@ from ..materials import shading as materials
 from ..sampling import samplers
 from ..util.rows import gather, scale, scatter, scatter_add
 from ..util.vectors import luminance
-from .accumulation import (COLUMNS, Accumulation, FrameValues, accumulate, geometric_edges, light_range,
-                           previous_pixels, restart, same_view)
+from .accumulation import COLUMNS, Accumulation, FrameValues, accumulate, light_range, restart
 from .adaptive_direct import light_sample_counts, reprojected_hold, update_noise_hold
 from .boiling import boiling_filter
 from .denoise import MOMENTS, frame_moments
 from .denoise import denoise as svgf
 from .gbuffer import FirstPass, FrameImage, trace_rows
+from .ghosts import SurfaceRange, parallax, surface_range
 from .glossy_reuse import GlossySamples, reuse_glossy
 from .initial import InitialSampling, initial_samples
+from .reprojection import film_shift, geometric_edges, previous_pixels, same_view
 from .reservoirs import distinct, finalize, merge
 from .scene_changes import SceneChanges, scene_changes
 from .settings import UNBIASED
@@ -94,6 +95,7 @@ class FrameState:
     refined: object = None          # silhouettes.RefinedSeen, or None
     gate: object = None             # accumulation.light_range, or None
     edges: np.ndarray = None        # geometric edges, or None
+    surface: SurfaceRange = None    # this frame's albedo and normal ranges (moving views), or None
     carry: bool = False             # last frame's spatial reservoirs are candidates
     shared: object = None           # spatial.shared_terms, or None
     prev_acc: object = None         # last frame's Accumulation, or None
@@ -232,10 +234,14 @@ def between_passes(s):
     s.img = FrameImage(one.valid, one.depth, one.object_id, one.p, one.n, one.ng, s.width, s.height)
     s.gate = light_range(one.lum_direct, one.valid, s.width, s.height) if s.moved else None
     # Pixels on geometric edges read their running means' history from every
-    # tap (accumulation.previous_pixels): on a moving view, a history of their
+    # tap (reprojection.previous_pixels): on a moving view, a history of their
     # own surface alone left each showing whichever side its one ray hit.
     if s.accumulating and history is not None and (s.moved or not same_view(ctx.scene.camera, history.camera)):
         s.edges = geometric_edges(one.object_id, one.depth, one.valid, s.width, s.height)
+        s.surface = surface_range(one.albedo, one.n, one.lum_direct + luminance(one.seen), s.width, s.height)
+        shift, _ = film_shift(ctx.scene, history, np.arange(s.n), one.p[one.valid], one.valid, one.object_id,
+                              s.motion)
+        s.surface.edges, s.surface.parallax = s.edges, parallax(shift, s.width)
     ctx.accel.poll()    # the resampling passes trace no rays until shading
     if s.biased:        # the filter trades a little energy for stability: not in the unbiased mode
         boiling_filter(s.temporal, s.width, s.height, settings.boiling_filter)
@@ -339,7 +345,8 @@ def second_pass_rows(s, a, b):
                              settings.frame_weight, moments)
         rows = accumulate(s.prev_acc, footprint, values, settings.accumulate,
                           None if s.refined is None else s.refined.rows(a, b),
-                          None if s.gate is None else s.gate.rows(a, b)).data
+                          None if s.gate is None else s.gate.rows(a, b),
+                          None if s.surface is None else s.surface.rows(a, b)).data
         s.shaded[a:b] = rows
     color = rows[:, 0:3] + rows[:, 3:6] + rows[:, 14:17]
     timings.spent("shading", t)

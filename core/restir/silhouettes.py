@@ -148,7 +148,7 @@ def refine_edges(ctx, seed, frame, pixel_filter, seen, lum_direct, samples, stre
         lum[edges] = luminance(seen[edges])
     # A pixel whose ray missed a moving emitter can still hold part of it
     # once refined, under its own object id (or none): the running means'
-    # trail test (accumulation.previous_pixels) goes by object ids, so the
+    # trail test (reprojection.previous_pixels) goes by object ids, so the
     # history of the radiance seen directly is held under the brightest of
     # this frame's pixels around it instead.
     ceiling = neighbourhood_range(lum, None, scene.width, scene.height)[0]

@@ -16,7 +16,8 @@ from restir_gi.core import Materials, RenderContext, RenderSettings, render_fram
 from restir_gi.core.camera.projection import PixelFilter
 from restir_gi.core.render import render_restir, settle_frames, still_frame_weight
 from restir_gi.core.restir import BIASED, UNBIASED, ReSTIRGI, ReSTIRSettings
-from restir_gi.core.restir.accumulation import STILL, FrameValues, Footprint, accumulate, previous_pixels
+from restir_gi.core.restir.accumulation import LIGHT_FRAMES, STILL, FrameValues, accumulate
+from restir_gi.core.restir.reprojection import Footprint, previous_pixels
 from restir_gi.core.restir.gbuffer import trace_gbuffer
 from restir_gi.core.util.vectors import luminance
 from support.scenes import cornell_box, look_at
@@ -252,7 +253,7 @@ def test11_catmull_rom_history_reads():
     """The 4x4 window's weights sum to one, interpolate (t = 0 reads the pixel
     itself), reproduce a linear ramp exactly, and the read is clipped to the
     inner 2x2 taps' range (no overshoot at a sharp edge)."""
-    from restir_gi.core.restir.accumulation import TAPS, _catmull_rom
+    from restir_gi.core.restir.reprojection import TAPS, _catmull_rom
     t = np.linspace(0, 0.99, 12).astype(np.float32)
     wx = np.stack(_catmull_rom(t))
     assert np.allclose(wx.sum(axis=0), 1.0, atol=1e-6)
@@ -269,7 +270,7 @@ def test11_catmull_rom_history_reads():
     img = np.zeros((6, 3), np.float32)
     img[3:] = 10.0
     prev = accumulate(None, None, FrameValues(img, img, img, img), cap=8)
-    prev.count[:] = 8
+    prev.count[:] = prev.data[:, LIGHT_FRAMES] = 8
     zero = np.zeros((n, 3), np.float32)
     out = accumulate(prev, fp, FrameValues(zero, zero, zero, zero), cap=8)
     hist = out.direct[0, 0] * 8 / 7                      # undo the blend with this frame's 0
@@ -279,7 +280,7 @@ def test11_catmull_rom_history_reads():
 def test12_geometric_edges():
     """Pixels whose 3x3 neighbourhood holds another object, a miss beside a
     hit, or a depth jump are edges; the inside of a surface is not."""
-    from restir_gi.core.restir.accumulation import geometric_edges
+    from restir_gi.core.restir.reprojection import geometric_edges
     w, h = 8, 6
     oid = np.zeros((h, w), np.int32)
     oid[:, 5:] = 1                              # a second object from column 5
@@ -296,9 +297,13 @@ def test13_edges_keep_their_coverage_on_a_moving_view(monkeypatch):
     """On a moving camera, the running means of pixels on geometric edges read
     history from every tap: an edge pixel keeps the mix of the surfaces it
     covers instead of flipping to whichever side this frame's ray hit, so
-    its direct light changes less from frame to frame."""
+    its direct light changes less from frame to frame. (The frames an edge
+    keeps under fast parallax, ghosts.EDGE_SHIFT, trade some of that for less
+    lag; they are left out here, and measured by the bench.)"""
     import restir_gi.core.restir.frame as restir_module
-    from restir_gi.core.restir.accumulation import geometric_edges
+    from restir_gi.core.restir import ghosts
+    monkeypatch.setattr(ghosts, "EDGE_SHIFT", np.inf)
+    from restir_gi.core.restir.reprojection import geometric_edges
 
     def run():
         scene = filtered_box(32, 32)

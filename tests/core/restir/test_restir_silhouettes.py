@@ -9,7 +9,8 @@ import pytest
 
 from restir_gi.core import Camera, Lights, Materials, RenderContext, make_scene
 from restir_gi.core.camera.projection import PixelFilter
-from restir_gi.core.restir.accumulation import COLUMNS, Accumulation, FrameValues, Footprint, accumulate
+from restir_gi.core.restir.accumulation import COLUMNS, LIGHT_FRAMES, Accumulation, FrameValues, accumulate
+from restir_gi.core.restir.reprojection import Footprint
 from restir_gi.core.restir.gbuffer import trace_gbuffer
 from restir_gi.core.restir.adaptive_direct import neighbourhood_range
 from restir_gi.core.restir.silhouettes import MAX_EDGE_SHARE, edge_pixels, mean_seen_directly, refine_edges
@@ -151,7 +152,7 @@ def test06_refinement_off():
 
 def history(seen):
     data = np.zeros((len(seen), COLUMNS), np.float32)
-    data[:, 12] = 4.0           # four frames held
+    data[:, 12] = data[:, LIGHT_FRAMES] = 4.0     # four frames held
     data[:, 14:17] = seen
     return Accumulation(data)
 
