@@ -110,9 +110,9 @@ def parallax(shift, width):
                                ((slice(0, -1), slice(None)), (slice(1, None), slice(None))),
                                ((slice(0, -1), slice(0, -1)), (slice(1, None), slice(1, None))),
                                ((slice(0, -1), slice(1, None)), (slice(1, None), slice(0, -1)))):
-        d = np.maximum(np.abs(sx[ay, ax] - sx[by, bx]), np.abs(sy[ay, ax] - sy[by, bx]))
-        np.maximum(out[ay, ax], d, out=out[ay, ax])
-        np.maximum(out[by, bx], d, out=out[by, bx])
+        d = np.fmax(np.abs(sx[ay, ax] - sx[by, bx]), np.abs(sy[ay, ax] - sy[by, bx]))
+        np.fmax(out[ay, ax], d, out=out[ay, ax])     # (fmax: a motion that is not a number counts as none)
+        np.fmax(out[by, bx], d, out=out[by, bx])
     return out.ravel()
 
 
