@@ -96,6 +96,7 @@ class FrameState:
     gate: object = None             # accumulation.light_range, or None
     edges: np.ndarray = None        # geometric edges, or None
     surface: SurfaceRange = None    # this frame's albedo and normal ranges (moving views), or None
+    film: tuple = None              # reprojection.film_shift of every pixel (moving views), or None
     carry: bool = False             # last frame's spatial reservoirs are candidates
     shared: object = None           # spatial.shared_terms, or None
     prev_acc: object = None         # last frame's Accumulation, or None
@@ -239,9 +240,9 @@ def between_passes(s):
     if s.accumulating and history is not None and (s.moved or not same_view(ctx.scene.camera, history.camera)):
         s.edges = geometric_edges(one.object_id, one.depth, one.valid, s.width, s.height)
         s.surface = surface_range(one.albedo, one.n, one.lum_direct + luminance(one.seen), s.width, s.height)
-        shift, _ = film_shift(ctx.scene, history, np.arange(s.n), one.p[one.valid], one.valid, one.object_id,
-                              s.motion)
-        s.surface.edges, s.surface.parallax = s.edges, parallax(shift, s.width)
+        s.film = film_shift(ctx.scene, history, np.arange(s.n), one.p[one.valid], one.valid, one.object_id,
+                            s.motion)
+        s.surface.edges, s.surface.parallax = s.edges, parallax(s.film[0], s.width)
     ctx.accel.poll()    # the resampling passes trace no rays until shading
     if s.biased:        # the filter trades a little energy for stability: not in the unbiased mode
         boiling_filter(s.temporal, s.width, s.height, settings.boiling_filter)
@@ -338,7 +339,8 @@ def second_pass_rows(s, a, b):
         footprint = None
         if s.prev_acc is not None:
             footprint = previous_pixels(ctx.scene, part, s.history, s.motion, still_scene=not s.moved,
-                                        edges=None if s.edges is None else s.edges[a:b])
+                                        edges=None if s.edges is None else s.edges[a:b],
+                                        film=None if s.film is None else (s.film[0][a:b], s.film[1][a:b]))
         moments = frame_moments(indirect, one.albedo[a:b]) if settings.denoise else None
         # (without accumulation: this frame's values, as a mean of one frame)
         values = FrameValues(direct_total, indirect, one.albedo[a:b], img.n[a:b], one.alpha[a:b], seen,

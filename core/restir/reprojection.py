@@ -111,7 +111,7 @@ def geometric_edges(object_id, depth, valid, width, height):
     return out.ravel()
 
 
-def previous_pixels(scene, gb, history, motion=None, still_scene=False, edges=None):
+def previous_pixels(scene, gb, history, motion=None, still_scene=False, edges=None, film=None):
     """Footprint of last frame's history of every pixel of the part ``gb``.
 
     motion: temporal.ObjectMotion.between(scene, history) (None: nothing
@@ -124,7 +124,10 @@ def previous_pixels(scene, gb, history, motion=None, still_scene=False, edges=No
 
     edges ((N,) bool, geometric_edges of this frame): pixels that cover
     several surfaces read every tap, not only those that saw their own
-    surface: their history is the mix they cover, as on a still view."""
+    surface: their history is the mix they cover, as on a still view.
+
+    film: film_shift's (shift, depth) of the part's pixels, if the caller
+    has them (the frame finds them for the whole image); else found here."""
     n = len(gb.valid)
     if history is None or (history.width, history.height) != (gb.width, gb.height):
         return Footprint.none(n)
@@ -137,7 +140,8 @@ def previous_pixels(scene, gb, history, motion=None, still_scene=False, edges=No
         out.exact = True
         return out
     centre = np.stack([pix % w, pix // w], axis=1).astype(np.float32) + 0.5
-    shift, depth = film_shift(scene, history, pix, gb.surf.p, gb.valid, gb.object_id, motion)
+    shift, depth = film if film is not None else film_shift(scene, history, pix, gb.surf.p, gb.valid,
+                                                            gb.object_id, motion)
     target = centre + shift
     idx = gb.index
     x = np.floor(target[:, 0]).astype(np.int64)
