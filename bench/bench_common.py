@@ -4,6 +4,7 @@ render frames of a .blend through bpy as a user does (bench/equal_time.py)."""
 import contextlib
 import importlib.util
 import os
+import statistics
 import sys
 import tempfile
 import time
@@ -28,6 +29,16 @@ def load_addon():
         spec.loader.exec_module(module)
         module.register()
     return sys.modules["restir_gi"]
+
+
+def median_ms(fn, repeats):
+    """Median milliseconds of ``repeats`` calls of fn()."""
+    out = []
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        fn()
+        out.append(time.perf_counter() - t0)
+    return statistics.median(out) * 1000
 
 
 def export_blend(path, scale=1.0):

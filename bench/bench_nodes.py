@@ -21,16 +21,7 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from bench_common import ROOT, export_blend, load_addon
-
-
-def median_ms(fn, repeats):
-    out = []
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        fn()
-        out.append(time.perf_counter() - t0)
-    return statistics.median(out) * 1000
+from bench_common import ROOT, export_blend, load_addon, median_ms
 
 
 def main():
