@@ -22,6 +22,7 @@ from restir_gi.core.restir import spatial as spatial_module
 from restir_gi.core.restir.gbuffer import FrameImage
 from restir_gi.core.restir.spatial import SpatialReuse, shared_terms, spatial_resample
 from restir_gi.core.restir.reservoirs import Reservoirs
+from restir_gi.core.restir.shift import target_at
 from restir_gi.core.scene import LIGHT_POINT
 from support.scenes import Builder, look_at, quad
 from support.restir_reference import Reference, assert_same_mean, restir_runs
@@ -44,14 +45,14 @@ def plane_image(tilt_right=0.0, depth_right=1.0):
                       p=p, n=n, ng=np.tile(np.float32([0, 0, 1]), (len(pix), 1)), width=W, height=H)
 
 
-def samples_above(img, radiance, holders=None):
+def samples_above(img, radiance, holders=None, height=1.0):
     """Temporal reservoirs (M 1) holding, for the pixels ``holders`` (all by
-    default), a sample 1 m above the visible point with the given radiance
+    default), a sample ``height`` m above the visible point with the given radiance
     (one per pixel), at its target (luminance x cosine 1): W = 1 / p_hat."""
     n = len(img.valid)
     res = Reservoirs.empty(n)
     rows = np.arange(n) if holders is None else np.asarray(holders)
-    res.x2[rows] = img.p[rows] + np.float32([0, 0, 1])
+    res.x2[rows] = img.p[rows] + np.float32([0, 0, height])
     res.ng2[rows] = res.n2[rows] = res.wo2[rows] = (0.0, 0.0, -1.0)
     res.prim2[rows] = 0
     res.lo[rows] = np.asarray(radiance, np.float32)[rows, None]
@@ -210,3 +211,27 @@ def test06_without_visibility_in_the_targets_the_mean_is_off(fence, monkeypatch)
     runs = restir_runs(ctx, 64, mode=UNBIASED, temporal=False)
     with pytest.raises(AssertionError):
         assert_same_mean(runs, ref, "unbiased, spatial reuse alone, no visibility")
+
+
+def test07_biased_weights_count_only_neighbours_that_could_hold_the_sample():
+    """The biased mode's W = w_sum / (Z p_hat): with samples 1 mm above their
+    points (as close as near a concave corner), no neighbour's point could
+    have produced a pixel's sample (every shift's Jacobian is beyond
+    J_MAX), so each pixel keeps its own sample at its own weight where 1/M
+    would divide it by the k + 1 candidates' M; with samples 1 m above every
+    neighbour could, and Z is M."""
+    img = plane_image()
+    close = samples_above(img, np.full(W * H, DIM), height=0.001)
+    res, _, _ = resample(NO_RAYS, img, close)
+    reused = res.M > 1
+    print(f"1 mm: {reused.mean():.2f} of the pixels had neighbours; W / own W "
+          f"{np.min(res.W / close.W):.3f}-{np.max(res.W / close.W):.3f}")
+    assert reused.mean() > 0.9
+    assert np.allclose(res.x2, close.x2)
+    assert np.allclose(res.W, close.W, rtol=1e-5)
+
+    far = samples_above(img, np.full(W * H, DIM))
+    res, _, _ = resample(NO_RAYS, img, far)
+    p_hat = target_at(res, img.p, img.ng, img.n)
+    assert (res.M > 1).mean() > 0.9
+    assert np.allclose(res.W * res.M * p_hat, res.w_sum, rtol=1e-5)
