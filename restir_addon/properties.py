@@ -91,7 +91,8 @@ class RestirGISceneSettings(bpy.types.PropertyGroup):
     )
     spatial_radius: FloatProperty(
         name="Spatial Radius", default=R.spatial_radius, min=1.0, soft_max=64.0, max=512.0, subtype="PIXEL",
-        description="Radius in pixels within which spatial neighbours are chosen",
+        description="Radius in pixels within which spatial neighbours are chosen while the view "
+                    "moves; half of it once nothing moves",
     )
     light_samples: IntProperty(
         name="Light Samples", default=R.light_samples, min=1, max=64,

@@ -30,6 +30,8 @@ class ReSTIRSettings:
     spatial_neighbors: int = 4
     spatial_radius: float = 16.0    # pixels; smaller radii help stills but turn a moving
                                     # view's fine noise into crawling blotches
+    still_radius_scale: float = 0.5     # the radius's share on a view that has not moved
+                                        # since last frame (stills, a still viewport)
     validation_interval: int = 4    # frames; 0 turns validation off
     validate_on_change: bool = False    # validate in the very frame the lighting changed (final
                                         # renders: frames waiting for the interval stay dark)

@@ -1,8 +1,9 @@
 """Spatial reuse (core/restir/spatial.py): which neighbours a pixel may reuse,
 how far samples travel, that a worker's share of the rows resamples as the
-whole image does, and that the unbiased mode's pairwise MIS keeps the path
+whole image does, that the unbiased mode's pairwise MIS keeps the path
 tracer's mean where neighbours' samples are hidden from the pixel (while the
-same weights without visibility do not).
+same weights without visibility do not), the biased mode's Z, and the
+smaller radius of a still view.
 
 The first tests build G-buffers and temporal reservoirs by hand: visible
 points on the plane z = 0 (1 cm a pixel, 5 m from the camera) whose samples
@@ -10,6 +11,7 @@ lie 1 m above them, the samples of the image's two halves told apart by
 their radiance.
 """
 
+import dataclasses
 from types import SimpleNamespace
 
 import numpy as np
@@ -17,14 +19,15 @@ import pytest
 
 from restir_gi.core import Camera, Lights, Materials, RenderContext, RenderSettings, make_scene, render_frame
 from restir_gi.core.sampling import samplers
-from restir_gi.core.restir import UNBIASED
+from restir_gi.core.restir import UNBIASED, ReSTIRGI, ReSTIRSettings
+from restir_gi.core.restir import frame as frame_module
 from restir_gi.core.restir import spatial as spatial_module
 from restir_gi.core.restir.gbuffer import FrameImage
 from restir_gi.core.restir.spatial import SpatialReuse, shared_terms, spatial_resample
 from restir_gi.core.restir.reservoirs import Reservoirs
 from restir_gi.core.restir.shift import target_at
 from restir_gi.core.scene import LIGHT_POINT
-from support.scenes import Builder, look_at, quad
+from support.scenes import Builder, cornell_box, look_at, quad
 from support.restir_reference import Reference, assert_same_mean, restir_runs
 
 W, H = 48, 32
@@ -235,3 +238,32 @@ def test07_biased_weights_count_only_neighbours_that_could_hold_the_sample():
     p_hat = target_at(res, img.p, img.ng, img.n)
     assert (res.M > 1).mean() > 0.9
     assert np.allclose(res.W * res.M * p_hat, res.w_sum, rtol=1e-5)
+
+
+def test08_a_still_view_reuses_nearer_neighbours(monkeypatch):
+    """Spatial reuse draws neighbours within the full radius on a view's
+    first frame and while the camera moves, and within still_radius_scale
+    of it while nothing moves."""
+    radii = []
+
+    def record(ctx, gb, temporal, seeds, reuse, *args, **kwargs):
+        radii.append(reuse.radius)
+        return spatial_resample(ctx, gb, temporal, seeds, reuse, *args, **kwargs)
+
+    monkeypatch.setattr(frame_module, "spatial_resample", record)
+    restir = ReSTIRGI()
+    scene = cornell_box("area", 24, 24)
+    settings = ReSTIRSettings(seed=1, max_bounces=1, spatial_radius=12.0)
+    poses = []
+    for f, x in enumerate([0.0, 0.0, 0.0, 0.1, 0.1]):
+        eye = np.array([x, -3.9, 1.0])
+        scene.camera = dataclasses.replace(scene.camera, to_world=look_at(eye, eye + [0, 3.9, 0]))
+        ctx = RenderContext.build(scene)
+        try:
+            start = len(radii)
+            restir.render_frame(ctx, settings, f)
+            poses.append(set(radii[start:]))
+        finally:
+            ctx.close()
+    print(f"radii per frame: {poses}")
+    assert poses == [{12.0}, {6.0}, {6.0}, {12.0}, {6.0}]
