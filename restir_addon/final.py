@@ -168,11 +168,15 @@ def _follows(engine, stream, scene, ctx):
 
 
 def _next_frame(engine, stream, scene):
-    """This frame of an animation comes right after the stream's last one
-    (else an animation render began here, after the scene's first frame:
-    _chunk_warmup; a cut at this frame needs none, the shot starts here)."""
+    """This frame of an animation comes right after the stream's last one,
+    one Frame Step on (else an animation render began here, after the
+    scene's first frame: _chunk_warmup; a cut at this frame needs none, the
+    shot starts here). With a Frame Step of 2 or more the frames between are
+    not rendered: reuse reprojects over the larger motion, as it does for a
+    fast camera, so each written frame costs one frame of resampling."""
+    step = max(1, int(getattr(scene, "frame_step", 1)))
     return (engine.is_animation and stream.last_frame is not None
-            and scene.frame_current == stream.last_frame + 1 and stream.restir.history is not None)
+            and scene.frame_current == stream.last_frame + step and stream.restir.history is not None)
 
 
 def _same_shot(stream, scene, ctx):

@@ -55,6 +55,34 @@ def test_animation_writes_one_file_per_frame(addon, reports, tmp_path, mode):
     assert reports.of("ERROR") == []
 
 
+def test_frame_step_continues_reuse(addon, reports, tmp_path):
+    """With a Frame Step of 2 each written frame continues from the one
+    written before it (one frame of resampling, no warm-up of the frames
+    between), and the files are those of every second frame."""
+    import bpy
+    scene = fresh(16, 16, samples=1, mode="RESTIR_BIASED")
+    scene.restir_gi.warmup_frames = 3
+    world((0.5, 0.5, 0.5))
+    add_mesh("Floor", *rect(-2, 2, -2, 2))
+    cam = camera(location=(0, 0, 5), type="ORTHO", ortho_scale=4.0)
+    for frame, x in ((1, 0.0), (7, 0.3)):
+        cam.location = (x, 0, 5)
+        cam.keyframe_insert("location", frame=frame)
+    scene.frame_start, scene.frame_end, scene.frame_step = 1, 7, 2
+    scene.render.image_settings.file_format = "OPEN_EXR"
+    scene.render.filepath = str(tmp_path / "frame_####")
+    stream = addon.restir_addon.state.stream_for(scene.name, bpy.context.view_layer.name)
+    stream.restir.reset()
+    bpy.ops.render.render(animation=True)
+    files = sorted(os.path.basename(f) for f in glob.glob(str(tmp_path / "frame_*.exr")))
+    assert files == ["frame_0001.exr", "frame_0003.exr", "frame_0005.exr", "frame_0007.exr"]
+    for f in files:
+        assert_valid(read_exr(str(tmp_path / f)), (16, 16))
+    # Frame 1: 3 warm-up frames; 3, 5 and 7: one each.
+    assert stream.last_frame == 7 and stream.restir.frames == 3 + 3
+    assert reports.of("ERROR") == []
+
+
 def test_camera_cut_restarts_reuse(addon, reports, tmp_path):
     """A marker switching to another camera resets the reservoirs (and warms
     up again); the frames after the cut continue from it."""
