@@ -9,8 +9,8 @@ from ...core.materials.shading import shading
 from .camera import export_camera, render_size
 from .lights import is_supported, light_row
 from .materials import MaterialTable
-from .mesh import (GEOMETRY_TYPES, SWAP, hair_warning, mirrors, place, placed_triangles, read_corner_data, read_mesh,
-                   unrendered)
+from .mesh import (GEOMETRY_TYPES, SWAP, hair_warning, in_edit_mode, mirrors, place, placed_triangles,
+                   read_corner_data, read_mesh, unrendered)
 from .strands import STRAND_TYPES, has_particle_hair, pad_corners, read_strands, with_particle_hair
 from .object_attributes import attribute_tables, object_attributes, split_needs
 from .world import evaluated_world, export_world
@@ -37,7 +37,7 @@ def _object_mesh(obj, cache, keys, warn):
             mesh = read_strands(obj, warn)
             cache[key] = None if mesh is None else (mesh, {})
         return cache[key]
-    if obj.type == "MESH":
+    if obj.type == "MESH" and not in_edit_mode(obj.data):
         hair = has_particle_hair(obj)       # the object's own strands: not shared with the mesh's other users
         key = ("hair", obj.name) if hair else obj.data.as_pointer()
         if key not in cache:

@@ -17,6 +17,15 @@ GEOMETRY_TYPES = {"MESH", "CURVES", "POINTCLOUD"}
 UNRENDERED_TYPES = {"VOLUME": "volume objects are not rendered"}
 
 
+def in_edit_mode(me):
+    """A mesh in Edit Mode (being edited, or saved so): its geometry lives in
+    the edit data until Blender leaves the mode, and the object's ``data``
+    shows what it was before (a file saved in Edit Mode can show no faces at
+    all), so it is read through ``to_mesh``, as Cycles reads the evaluated
+    mesh."""
+    return bool(getattr(me, "is_editmode", False))
+
+
 def unrendered(obj):
     """The warning for an object whose type has geometry this engine does not render, else None."""
     what = UNRENDERED_TYPES.get(obj.type)

@@ -14,7 +14,7 @@ import numpy as np
 from ...core.scene import Camera
 from ..export.camera import depth_of_field
 from ..export.mesh import (
-    MeshData, hair_warning, mirrors, place, placed_triangles, read_corner_data, read_mesh,
+    MeshData, hair_warning, in_edit_mode, mirrors, place, placed_triangles, read_corner_data, read_mesh,
     triangle_cross, unit_rows)
 from ..export.strands import STRAND_TYPES, read_strands, with_particle_hair
 
@@ -83,7 +83,7 @@ def _read_object_geometry(obj, keys, warn):
             mesh.corners = read_corner_data(me, set(keys), warn or (lambda text: None), obj.name)
         return _clean_mesh(mesh, warn, obj.name)
 
-    if obj.type == "MESH":
+    if obj.type == "MESH" and not in_edit_mode(obj.data):
         return with_particle_hair(obj, read(obj.data), warn)
     if obj.type in STRAND_TYPES:        # point clouds and hair curves: triangles made here
         return read_strands(obj, warn)
@@ -94,9 +94,11 @@ def _read_object_geometry(obj, keys, warn):
     if me is None:
         return None
     try:
-        return read(me)
+        mesh = read(me)
     finally:
         obj.to_mesh_clear()
+    return with_particle_hair(obj, mesh, warn) if obj.type == "MESH" else mesh
+
 
 
 def _face_normals(pos, tris):

@@ -275,3 +275,29 @@ def test_ray_visibility_per_object(addon):
     assert rows == {"seen": [True] * 5, "unseen": [False, False, True, False, True]}
     b.visible_camera = b.visible_shadow = b.visible_glossy = True
     assert export(addon).ray_visibility is None      # all visible: nothing to hide
+
+
+def test_a_mesh_in_edit_mode_renders_its_edits(addon, monkeypatch):
+    """A mesh in Edit Mode (a user rendering while editing, or a file saved
+    so) renders as edited: its object's data shows the mesh as it was when
+    the mode began until Blender leaves it, as the untouched mesh shows."""
+    import bmesh
+    import bpy
+    fresh()
+    obj = add_mesh("edited", *QUAD)
+    bpy.context.view_layer.objects.active = obj
+    obj.select_set(True)
+    bpy.ops.object.mode_set(mode="EDIT")
+    try:
+        bm = bmesh.from_edit_mesh(obj.data)
+        for v in bm.verts:
+            v.co.z += 2.0
+        bm.faces.new([bm.verts.new((5, 0, 0)), bm.verts.new((6, 0, 0)), bm.verts.new((5, 1, 0))])
+        bmesh.update_edit_mesh(obj.data)
+        assert len(obj.data.polygons) == 1         # the data as it was
+        for s in (export(addon), export_for_render(addon, monkeypatch)):
+            assert tri_counts(s) == {"edited": 3}
+            z = tri_points(s, "edited")[..., 2]
+            assert sorted(np.unique(np.round(z, 5)).tolist()) == [0.0, 2.0]
+    finally:
+        bpy.ops.object.mode_set(mode="OBJECT")
