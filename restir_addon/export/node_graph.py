@@ -349,7 +349,8 @@ class _Translator:
         elif kind == "VERTEX_COLOR":
             needs.add(f"color:{node.layer_name}")
         elif kind == "ATTRIBUTE" and node.attribute_type == "GEOMETRY":
-            needs.add(f"color:{node.attribute_name}")
+            if node.attribute_name:         # no name reads zero (the shader's own rule)
+                needs.add(f"color:{node.attribute_name}")
         elif kind == "ATTRIBUTE" and node.attribute_type in ("OBJECT", "INSTANCER"):
             needs.add(f"{node.attribute_type.lower()}:{node.attribute_name}")      # object_attributes.py
         elif kind == "ATTRIBUTE":

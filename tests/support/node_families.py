@@ -192,7 +192,9 @@ def normals(scene):
 
 
 def attributes(scene):
-    """Color Attribute on the boxes' corners, Object Info's Random through a ramp."""
+    """Color Attribute on the boxes' corners (the short box's through an
+    Attribute node without a name, which reads zero, added to grey), Object
+    Info's Random through a ramp."""
     import bpy
     mat, tree, out = new_material("VertexColored")
     attr = tree.nodes.new("ShaderNodeVertexColor")
@@ -207,7 +209,19 @@ def attributes(scene):
         values = np.ones((len(col.data), 4), np.float32)
         values[:, :3] = rng.uniform(0.05, 0.9, (len(col.data), 3))
         col.data.foreach_set("color", values.ravel())
-    assign(["TallBox", "ShortBox"], mat)
+    assign(["TallBox"], mat)
+    mat1, tree1, out1 = new_material("UnnamedAttribute")
+    unnamed = tree1.nodes.new("ShaderNodeAttribute")
+    unnamed.attribute_name = ""
+    add = tree1.nodes.new("ShaderNodeMix")
+    add.data_type, add.blend_type = "RGBA", "ADD"
+    add.inputs["Factor"].default_value = 1.0
+    add.inputs["B"].default_value = (0.3, 0.3, 0.3, 1)
+    tree1.links.new(unnamed.outputs["Color"], add.inputs["A"])
+    d1 = tree1.nodes.new("ShaderNodeBsdfDiffuse")
+    tree1.links.new(add.outputs["Result"], d1.inputs["Color"])
+    tree1.links.new(d1.outputs[0], out1.inputs["Surface"])
+    assign(["ShortBox"], mat1)
     mat2, tree2, out2 = new_material("ByObject")
     info = tree2.nodes.new("ShaderNodeObjectInfo")
     ramp = tree2.nodes.new("ShaderNodeValToRGB")
