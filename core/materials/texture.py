@@ -56,7 +56,8 @@ truncated toward zero, as Cycles does (so u in (-1, 0) still lands in column
 or on a tile the set lacks reads Cycles' missing-image colour (1, 0, 1) with
 alpha 1, with no further processing. A set that is not tiled uses its one
 image for every uv. A missing or unreadable image is a 1 x 1 magenta image
-(``magenta``): Cycles' replacement, which still honours the extension mode.
+(``magenta``): Cycles reads its missing-image colour at every uv, whatever
+the extension mode (a Clip texture is magenta outside [0, 1] too).
 """
 
 from dataclasses import dataclass, field
@@ -115,6 +116,7 @@ class Image:
     alpha: str = "STRAIGHT"
     data: bool = False
     encoding: str = "linear"
+    missing: bool = False       # Cycles' stand-in for an image it could not load
 
     def __post_init__(self):
         p = np.asarray(self.pixels)
@@ -232,7 +234,7 @@ def from_pixels(pixels, name="", alpha="STRAIGHT", data=False, srgb=False,
 
 def _magenta_image(name=""):
     return Image(np.array(MISSING_RGBA, np.float32).reshape(1, 1, 4), name=name,
-                 alpha="STRAIGHT")
+                 alpha="STRAIGHT", missing=True)
 
 
 def magenta(name=""):
@@ -357,14 +359,20 @@ def _option(value, allowed, what):
     return key
 
 
+def _texels(image, u, v, interpolation, extension, unassociate):
+    """(r, g, b, a) arrays of one image's lookup at (u, v)."""
+    if image.missing:
+        return tuple(np.full(len(u), c, np.float32) for c in MISSING_RGBA)
+    return _finish(_sample(image, u, v, interpolation, extension), image, unassociate)
+
+
 def _lookup(image_set, u, v, interpolation, extension, unassociate):
     """(N, 4) float32 RGBA of the lookup, before the final finiteness check."""
     n = len(u)
     out = np.empty((n, 4), np.float32)
     if not image_set.tiled:
         image = next(iter(image_set.tiles.values()))
-        for c, x in enumerate(_finish(_sample(image, u, v, interpolation, extension),
-                                      image, unassociate)):
+        for c, x in enumerate(_texels(image, u, v, interpolation, extension, unassociate)):
             out[:, c] = x
         return out
     out[:] = MISSING_RGBA
@@ -377,7 +385,7 @@ def _lookup(image_set, u, v, interpolation, extension, unassociate):
             continue
         su = u[where] - tx[where].astype(np.float32)
         sv = v[where] - ty[where].astype(np.float32)
-        rgba = _finish(_sample(image, su, sv, interpolation, extension), image, unassociate)
+        rgba = _texels(image, su, sv, interpolation, extension, unassociate)
         for c, x in enumerate(rgba):
             out[where, c] = x
     return out

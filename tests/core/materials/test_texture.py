@@ -288,8 +288,12 @@ def test17_missing_and_empty_images_are_magenta():
     for s in (magenta("x"), ImageSet.single(im)):
         np.testing.assert_allclose(rgba(s, [(0.3, 0.7), (5.5, -2.0)], "Cubic"), [[1, 0, 1, 1]] * 2,
                                    atol=1e-6)
-        # Cycles' replacement is an ordinary 1 x 1 image: CLIP still clips it.
-        np.testing.assert_array_equal(rgba(s, [(1.5, 0.5)], "Closest", "CLIP"), [[0, 0, 0, 0]])
+        # Cycles reads its missing-image colour at every uv, whatever the
+        # extension: CLIP leaves it magenta outside [0, 1] (checked against
+        # Cycles: a missing file on a quad whose uv span [-1, 2]).
+        for interpolation in ("Closest", "Linear", "Cubic"):
+            np.testing.assert_array_equal(rgba(s, [(1.5, 0.5), (0.0, 0.0), (-3.0, 0.5)], interpolation, "CLIP"),
+                                          [[1, 0, 1, 1]] * 3)
 
 
 def test18_channel_layouts():
