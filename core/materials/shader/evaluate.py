@@ -23,13 +23,17 @@ from .graph import BOOL, COLOR, FLOAT, INT, SHADER, VECTOR, Link
 LUMA = np.array([0.2126, 0.7152, 0.0722], np.float32)   # Blender's default scene luma (Rec.709)
 
 EVALUATORS = {}     # Node.kind -> function(inputs, geom, node) -> {output identifier: value}
+APPROXIMATED = {}   # Node.kind -> what its evaluator leaves out (warned once per material)
 
 
-def node(*kinds):
-    """Register an evaluator for the node kinds."""
+def node(*kinds, approximated=None):
+    """Register an evaluator for the node kinds; ``approximated``: what it
+    leaves out of Cycles' node, for the warning of a material that uses it."""
     def register(fn):
         for kind in kinds:
             EVALUATORS[kind] = fn
+            if approximated:
+                APPROXIMATED[kind] = approximated
         return fn
     return register
 
@@ -161,6 +165,8 @@ class CompiledShader:
                 fallback = "renders as a grey diffuse surface" if _is_bsdf(n.kind) else \
                     "it gives its default outputs"
                 self.warn_once(n.kind, f"node '{n.name or n.kind}' ({n.kind}) is not supported; {fallback}")
+            elif n.kind in APPROXIMATED:
+                self.warn_once(n.kind, f"node '{n.name or n.kind}' ({n.kind}): {APPROXIMATED[n.kind]}")
         # Outputs some node reads: an Image Texture un-premultiplies its colour
         # only when its Alpha output is used, as Cycles does.
         self.read_outputs = {(v.node, v.socket) for n in graph.nodes for v in n.inputs.values()

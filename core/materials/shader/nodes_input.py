@@ -167,6 +167,16 @@ def attribute(inp, geom, n, sh):
     return {"Color": c, "Vector": c, "Fac": c.mean(axis=-1).astype(np.float32), "Alpha": a}
 
 
+@node("AMBIENT_OCCLUSION", approximated="its occlusion rays are not traced; it passes its Color "
+                                        "(AO 1, as in the open)")
+def ambient_occlusion(inp, geom, n, sh):
+    """Cycles' Ambient Occlusion node scales its Color by the share of
+    cosine-weighted rays within Distance that hit nothing; shading here
+    traces no rays, so every point counts as open (right away from other
+    geometry, too bright in creases)."""
+    return {"Color": inp.color("Color", (1.0, 1.0, 1.0)), "AO": np.float32(1.0)}
+
+
 @varying
 @node("FRESNEL")
 def fresnel(inp, geom, n, sh):
