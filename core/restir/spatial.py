@@ -63,7 +63,7 @@ class SpatialReuse(NamedTuple):
     """How spatial_resample reuses neighbours."""
     neighbors: int          # k neighbours per pixel
     radius: float           # of the disk they are drawn in, pixels
-    biased: bool            # biased (W = w_sum / (M p_hat)) or unbiased (pairwise MIS) mode
+    biased: bool            # biased (W = w_sum / (Z p_hat), domain_confidence) or unbiased (pairwise MIS)
 
 
 class CarriedSpatial(NamedTuple):
