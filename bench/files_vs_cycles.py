@@ -13,7 +13,8 @@ against Cycles', and the criterion of issue 40 on the pixels that see
 geometry in Cycles' render (alpha > 0.5 with Film > Transparent): their
 mean within 5 % and the median of 8x8-block relative differences within
 10 % ("match"); a file whose frame shows no geometry in Cycles' render
-matches where the whole images' means are within 5 % (or both are black). Prints a markdown table; exit status 0.
+matches where the whole images' means are within 5 % (or both are black).
+Prints a markdown table; exit status 0.
 """
 
 import argparse

@@ -100,7 +100,6 @@ def _read_object_geometry(obj, keys, warn):
     return with_particle_hair(obj, mesh, warn) if obj.type == "MESH" else mesh
 
 
-
 def _face_normals(pos, tris):
     """Unit geometric normals, computed as core.make_scene does."""
     if len(tris) == 0:

@@ -158,11 +158,10 @@ def attribute(inp, geom, n, sh):
         c, a = np.ascontiguousarray(v[:, :3]), np.ascontiguousarray(v[:, 3])
     elif kind == "GEOMETRY" and name:
         c, a = geom.attribute(name)
-    elif kind == "GEOMETRY":
-        # No name: Cycles finds no attribute and reads zero (the Color
-        # Attribute node's empty name is the mesh's default colours instead).
-        c, a = np.zeros((geom.n, 3), np.float32), np.zeros(geom.n, np.float32)
-    else:           # View Layer: warned about at compile time
+    else:
+        # View Layer (warned about at compile time), or no name: Cycles finds
+        # no attribute and reads zero (the Color Attribute node's empty name
+        # is the mesh's default colours instead).
         c, a = np.zeros((geom.n, 3), np.float32), np.zeros(geom.n, np.float32)
     return {"Color": c, "Vector": c, "Fac": c.mean(axis=-1).astype(np.float32), "Alpha": a}
 
