@@ -299,8 +299,9 @@ def _spatial(s, a, b):
         prev_owner = gather(history.owners(spatial=True), q)
     # A still view's neighbours lie closer: they share more of the pixel's
     # light, and the blotches a small radius leaves do not crawl there
-    # (corpus courtyard still, biased + denoiser: MSE -15 % at half the
-    # radius, room +2 %; docs/validation.md).
+    # (corpus stills, biased + denoiser, at half the radius: courtyard
+    # MSE -15 %, glossy -1 %, emitters 0, room +2 %, slit room +9 %;
+    # docs/validation.md).
     radius = settings.spatial_radius * (settings.still_radius_scale if s.still_view else 1.0)
     reuse = SpatialReuse(settings.spatial_neighbors, radius, s.biased)
     carried = None if prev_spatial is None else CarriedSpatial(prev_spatial, prev_owner)
