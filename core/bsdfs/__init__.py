@@ -1,3 +1,3 @@
-"""BSDF lobes: Lambert and GGX (bsdf.py, microfacet.py), glass (glass.py), sheen
-(sheen.py) and the albedo tables of multiple scattering. Imports core.util and
-core.sampling."""
+"""BSDF lobes: Lambert and GGX (bsdf.py, microfacet.py), their Fresnel terms
+(fresnel.py), glass (glass.py), sheen (sheen.py) and the albedo tables of
+layering and multiple scattering. Imports core.util and core.sampling."""

@@ -7,6 +7,8 @@ diffuse lobe by cosine-weighted hemisphere sampling.
 
 A Diffuse BSDF node maps to specular = 0 and metallic = 0: pure Lambert, as in
 Cycles. A Glossy BSDF node maps to metallic = 1: pure GGX with Schlick Fresnel.
+The Principled BSDF's dielectric layer reflects by the exact Fresnel curve of
+its IOR, as Cycles' (fresnel.py).
 """
 
 from dataclasses import dataclass, fields
@@ -16,9 +18,10 @@ import numpy as np
 from ..util.rows import divide, gather, row_max, scale, scatter, scatter_add
 from ..sampling.warps import INV_PI, cosine_hemisphere_pdf, square_to_cosine_hemisphere
 from ..util.vectors import dot, luminance
-from .microfacet import ALPHA_MIN, ggx_d, ggx_g1, ggx_lambda, ggx_sample_visible_normal, schlick
+from .fresnel import dielectric_rise, ior_from_f0, schlick
+from .microfacet import ALPHA_MIN, ggx_d, ggx_g1, ggx_lambda, ggx_sample_visible_normal
 from .glass import glass_eval, glass_sample
-from .microfacet_albedo import albedo_terms, dielectric_f90
+from .microfacet_albedo import albedo_terms, rise_average
 from .sheen import add_lobe, at_view as sheen_at_view, ltc_sample
 
 
@@ -67,6 +70,12 @@ class BSDFParams:
     # one). Sampled with the diffuse lobe's cosine share.
     velvet: np.ndarray = None
     velvet_sigma: np.ndarray = None
+    # (N, 3) the share of f90 - f0 that rises along the exact dielectric
+    # Fresnel curve of IOR spec_ior (N,) instead of Schlick's (1 - cos)^5
+    # (fresnel.py; the Principled BSDF's dielectric layer and coat). None:
+    # every row is Schlick's.
+    f_exact: np.ndarray = None
+    spec_ior: np.ndarray = None
 
     def subset(self, index):
         index = np.asarray(index)
@@ -99,7 +108,7 @@ def without_lobes(p, hidden):
 
     for name in ("diffuse", "layered", "sheen", "velvet"):
         zero(name, 0)
-    for name in ("f0", "glass_r"):
+    for name in ("f0", "glass_r", "f_exact"):
         zero(name, 1)
     if p.f90 is not None or hidden[:, 1].any():
         p.f90 = (np.ones_like(p.f0) if p.f90 is None else p.f90) * keep[:, 1:2]
@@ -120,7 +129,8 @@ def principled_lobes(base, metallic, roughness, ior, level):
     broadcastable inputs: the metallic share reflects base colour, the
     dielectric share a Fresnel f0 of its IOR (scaled by 2 x Specular IOR
     Level) layered over a Lambert base; ``at_view`` takes from that base what
-    the layer reflects at the viewing angle."""
+    the layer reflects at the viewing angle. The layer's Fresnel rises from
+    f0 to one along the exact curve of the IOR of that f0 (``layer_ior``)."""
     metallic, base = np.clip(metallic, 0, 1)[..., None], np.maximum(base, 0)   # (Cycles: metals' f0 at most 1)
     f0_dielectric = np.minimum(((ior - 1) / (ior + 1)) ** 2 * 2.0 * np.maximum(level, 0), 1.0)[..., None]
     f0 = (1 - metallic) * f0_dielectric + metallic * np.minimum(base, 1)
@@ -128,13 +138,20 @@ def principled_lobes(base, metallic, roughness, ior, level):
     return diffuse, f0, np.clip(roughness, 0, 1), f0_dielectric[..., 0]
 
 
+def layer_ior(f0, ior):
+    """The IOR whose exact Fresnel curve the Principled BSDF's dielectric
+    layer of normal reflectance f0 follows: that of f0 (Specular IOR Level
+    moves it, as in Cycles), below one where the IOR input is."""
+    return ior_from_f0(f0, np.asarray(ior) < 1)
+
+
 def material_lobes(materials):
     """BSDFParams with one row per material of the table."""
     diffuse, f0, rough, layer_f0 = principled_lobes(materials.base_color, materials.metallic,
                                                     materials.roughness, materials.ior, materials.specular)
-    metallic = np.clip(materials.metallic, 0, 1)[:, None]
-    f90 = metallic + (1 - metallic) * dielectric_f90(layer_f0)[:, None]
-    p = lobe_params(diffuse, f0, rough, np.array(np.broadcast_to(f90, f0.shape)))
+    dielectric = 1 - np.clip(materials.metallic, 0, 1)
+    p = lobe_params(diffuse, f0, rough, np.ones_like(f0),
+                    exact=(scale(np.ones_like(f0), dielectric * (1 - layer_f0)), layer_ior(layer_f0, materials.ior)))
     p.layered = p.diffuse.copy()
     p.layer_f0 = np.array(np.broadcast_to(layer_f0, p.alpha.shape), np.float32)
     return p
@@ -152,6 +169,8 @@ def at_view(params, wo):
     cos = np.clip(wo[:, 2], 0.0, 1.0)
     f90 = params.f90 if params.f90 is not None else np.ones_like(params.f0)
     f_avg = params.f0 + (f90 - params.f0) * np.float32(1.0 / 21.0)
+    if params.f_exact is not None:
+        f_avg += scale(params.f_exact, rise_average(params.spec_ior) - np.float32(1.0 / 21.0))
     layered = params.layered is not None and params.layer_f0 is not None
     # The albedo matters only on rows with a dielectric layer or a GGX lobe:
     # elsewhere (diffuse-only materials) a = b = 0 gives the same parameters
@@ -160,35 +179,45 @@ def at_view(params, wo):
     rows = None if need.all() else np.nonzero(need)[0]
     pick = (lambda v: v) if rows is None else (lambda v: np.take(v, rows))
     spread = (lambda v: v) if rows is None else (lambda v: scatter(np.zeros(n, v.dtype), rows, v))
-    a, b = albedo_terms(np.sqrt(pick(params.alpha)), pick(cos))
-    a, b = spread(a), spread(b)
+    if layered:
+        lf0 = params.layer_f0
+        layer_eta = ior_from_f0(lf0)
+        a, b, r = albedo_terms(np.sqrt(pick(params.alpha)), pick(cos), pick(layer_eta))
+        a, b, r = spread(a), spread(b), spread(r)
+    else:
+        a, b = albedo_terms(np.sqrt(pick(params.alpha)), pick(cos))
+        a, b = spread(a), spread(b)
     e1 = np.maximum(a + b, 1e-3)
     lost_ms = (1.0 - e1) / e1
     lost = lost_ms if params.spec_ss is None else lost_ms * (1.0 - params.spec_ss)
     if layered:
         # The layer's albedo with what multiple scattering keeps, whichever
         # distribution the layer scatters by (Cycles estimates it so for
-        # layering): at a normal reflectance near one (an IOR near 0) the
-        # layer leaves the base nothing, GGX or Multiscatter GGX.
-        lf0 = params.layer_f0
-        lf90 = dielectric_f90(lf0)
-        e_layer = (lf0 * a + lf90 * b) * (1.0 + (lf0 + (lf90 - lf0) / np.float32(21.0)) * lost_ms)
+        # layering): its Fresnel rises from lf0 to one along the exact curve
+        # (an IOR and its inverse alike, as Cycles' table); at a normal
+        # reflectance near one (an IOR near 0) it leaves the base nothing.
+        rest = 1.0 - lf0
+        e_layer = (lf0 * e1 + rest * r) * (1.0 + (lf0 + rest * rise_average(layer_eta)) * lost_ms)
         e_layer = np.clip(e_layer, 0.0, 1.0).astype(np.float32)
         params.diffuse = np.maximum(params.diffuse - scale(params.layered, e_layer), 0.0).astype(np.float32)
     boost = (1.0 + scale(f_avg, lost)).astype(np.float32)
     params.f0 = (params.f0 * boost).astype(np.float32)
     params.f90 = (f90 * boost).astype(np.float32)
+    if params.f_exact is not None:
+        params.f_exact = (params.f_exact * boost).astype(np.float32)
     if params.sheen is not None:
         sheen_at_view(params, cos)
     return params
 
 
-def lobe_params(diffuse, f0, roughness, f90=None, glass=None, velvet=None):
+def lobe_params(diffuse, f0, roughness, f90=None, glass=None, velvet=None, exact=None):
     """BSDFParams from lobe weights: Lambert albedo (N, 3), GGX f0 (N, 3),
     roughness (N,), and the reflectance at grazing incidence f90 (N, 3; None:
     white); glass: (reflection weight (N, 3), refraction weight (N, 3), IOR
     (N,), roughness (N,)) of a glass lobe, or None; velvet: (colour (N, 3),
-    sigma (N,)) of an Ashikhmin velvet lobe, or None.
+    sigma (N,)) of an Ashikhmin velvet lobe, or None; exact: (the share of
+    f90 - f0 that rises along the exact dielectric curve (N, 3), its IOR
+    (N,)), or None (BSDFParams.f_exact).
 
     Lobes are picked in proportion to their share of the luminance (the
     velvet's counts with the diffuse lobe's, whose cosine samples serve
@@ -223,6 +252,10 @@ def lobe_params(diffuse, f0, roughness, f90=None, glass=None, velvet=None):
         n = len(p.alpha)
         p.velvet = np.ascontiguousarray(np.broadcast_to(velvet[0], (n, 3)), np.float32)
         p.velvet_sigma = np.array(np.broadcast_to(velvet[1], (n,)), np.float32)
+    if exact is not None:
+        n = len(p.alpha)
+        p.f_exact = np.array(np.broadcast_to(exact[0], (n, 3)), np.float32)
+        p.spec_ior = np.array(np.broadcast_to(exact[1], (n,)), np.float32)
     return p
 
 
@@ -281,7 +314,12 @@ def _lobes(params, wo, wi, want_f, want_pdf):
     lam_o = ggx_lambda(o, a)
     if want_f:
         g2 = 1.0 / (1.0 + lam_o + ggx_lambda(i, a))
-        fr = schlick(take(params.f0), dot(o, h), None if params.f90 is None else take(params.f90))
+        cos_oh = dot(o, h)
+        fr = schlick(take(params.f0), cos_oh, None if params.f90 is None else take(params.f90))
+        if params.f_exact is not None:
+            # The exact share rises by its own curve, not Schlick's.
+            m5 = np.clip(1.0 - cos_oh, 0.0, 1.0) ** 5
+            fr += scale(take(params.f_exact), dielectric_rise(cos_oh, take(params.spec_ior)) - m5)
         den = 4.0 * np.maximum(o[:, 2] * i[:, 2], 1e-12)
         spec_f = scale(fr, (d * g2 / den).astype(np.float32))
         if every:

@@ -48,39 +48,12 @@ tables), so rough glass loses some energy (tests/core/bsdfs/test_bsdf_glass.py l
 
 import numpy as np
 
+from .fresnel import fresnel_and_cos_t
 from .microfacet import ALPHA_MIN, ggx_d, ggx_lambda, ggx_sample_visible_normal
 from ..util.rows import scale
 
 ETA_GAP = 1e-3
 COS_MIN = 1e-6      # below it ggx_lambda clamps its tangent and f could overflow
-
-
-def fresnel_dielectric(cos_i, eta):
-    """Exact unpolarised Fresnel reflectance of a dielectric interface.
-
-    cos_i (N,): cosine between the incident direction and the interface normal
-    (its sign is ignored); eta (N,): IOR of the transmitted side over the
-    incident side. Returns (F, cos_t) as float32: the reflectance, the average
-    of the s and p reflectances, and the cosine of the refracted direction.
-    Total internal reflection (sin_t >= 1) gives F = 1 and cos_t = 0.
-    """
-    F, cos_t = _fresnel(cos_i, eta)
-    return F.astype(np.float32), cos_t.astype(np.float32)
-
-
-def _fresnel(cos_i, eta):
-    """fresnel_dielectric in float64."""
-    c = np.abs(np.asarray(cos_i, np.float64))
-    eta = np.asarray(eta, np.float64)
-    sin_t2 = (1.0 - c * c) / (eta * eta)
-    tir = sin_t2 >= 1.0
-    cos_t = np.sqrt(np.maximum(1.0 - sin_t2, 0.0))
-    # Both denominators are positive unless c = cos_t = 0, which is total internal reflection.
-    with np.errstate(invalid="ignore", divide="ignore"):
-        rs = (c - eta * cos_t) / (c + eta * cos_t)
-        rp = (eta * c - cos_t) / (eta * c + cos_t)
-        F = 0.5 * (rs * rs + rp * rp)
-    return np.where(tir | ~np.isfinite(F), 1.0, F), np.where(tir, 0.0, cos_t)
 
 
 def _lobe(alpha, eta):
@@ -130,7 +103,7 @@ def glass_eval(wo, wi, alpha, eta, tint, radiance=True):
     cos_ih = ix * hx + iy * hy + jz * hz
     ok = ((oz > COS_MIN) & (np.abs(iz) > COS_MIN) & (length > 0) & (hz > 0) & (cos_o > 0)
           & np.where(bend, cos_ih < 0, cos_ih > 0))
-    F = _fresnel(cos_o, e)[0]
+    F = fresnel_and_cos_t(cos_o, e)[0]
     den = cos_o + e * cos_ih
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
         jac = np.where(bend, e * e * np.abs(cos_ih) / (den * den), 0.25 / cos_o)
@@ -167,7 +140,7 @@ def glass_sample(wo, alpha, eta, tint, u_lobe, u, radiance=True):
     ox, oy, oz = _columns(wo_s)
     hx, hy, hz = _columns(h)
     cos_o = ox * hx + oy * hy + oz * hz
-    F, cos_t = _fresnel(cos_o, e)
+    F, cos_t = fresnel_and_cos_t(cos_o, e)
     refl = np.asarray(u_lobe) < F
     mirror = refl | matched
     # Reflection: 2 (wo.h) h - wo. Refraction: (wo.h / eta - cos_t) h - wo / eta.

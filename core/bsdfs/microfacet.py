@@ -1,10 +1,9 @@
-"""The GGX microfacet distribution (Trowbridge-Reitz) and Schlick's Fresnel:
-what the BSDF lobes built on microfacets share (bsdf.py, glass.py, the
-albedo tables of microfacet_albedo.py)."""
+"""The GGX microfacet distribution (Trowbridge-Reitz): what the BSDF lobes
+built on microfacets share (bsdf.py, glass.py, the albedo tables of
+microfacet_albedo.py). Their Fresnel terms are in fresnel.py."""
 
 import numpy as np
 
-from ..util.rows import scale
 
 ALPHA_MIN = np.float32(1e-3)
 
@@ -64,8 +63,3 @@ def ggx_sample_visible_normal(wo, alpha, u):
     ez = np.maximum(p2 * t2z + pz * vz, 1e-6)
     n = _length(ex, ey, ez)
     return np.stack([ex / n, ey / n, ez / n], axis=1).astype(np.float32)
-
-
-def schlick(f0, cos, f90=None):
-    m = np.clip(1.0 - cos, 0.0, 1.0)
-    return f0 + scale((1.0 if f90 is None else f90) - f0, m ** 5)

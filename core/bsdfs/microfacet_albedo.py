@@ -10,30 +10,54 @@ Two uses, both as Cycles does them with its precomputed tables:
   multiscatter GGX puts it back. Here the lobe is scaled by
   1 + F_avg (1 - E) / E (the Kulla-Conty energy term with a Fresnel average).
 
-With Schlick's Fresnel F = f0 (1 - m^5) + f90 m^5, m = 1 - cos(wo, h), the
-albedo is linear in (f0, f90): E = f0 A + f90 B. A and B are tabulated over
-(cos theta_o, roughness) by visible-normal sampling (each sample's weight is
-G2 / G1) and read bilinearly. The tables are built on first use (about a
-tenth of a second) and kept for the process.
+The lobe's Fresnel (fresnel.py) is F = f0 + (f90 - f0 - x) (1 - cos)^5 +
+x s_eta(cos): Schlick's, with a share x rising along the exact dielectric
+curve s_eta instead. The albedo is linear in those weights: E = f0 A +
+(f90 - x) B + x R_eta, with A and B tabulated over (cos theta_o, roughness)
+and R over the IOR as well, on Cycles' axis sqrt(|eta - 1| / (eta + 1)),
+which takes an IOR and its inverse alike. Each table entry is a mean over
+visible-normal samples (each weighted G2 / G1); reads are bilinear, and
+trilinear for R. The tables are built on first use (about a fifth of a second)
+and kept for the process.
 """
 
 import functools
 
 import numpy as np
 
+from .fresnel import ETA_MAX, dielectric_rise
 from .microfacet import ggx_lambda, ggx_sample_visible_normal
 
 N_COS = 32
 N_ROUGH = 32
 N_SAMPLES = 1024
+N_ETA = 24
+N_BINS = 4096     # cos(wo, h) bins of the rise table
+
+
+def _eta_axis():
+    """The IORs of the rise table's columns: t = sqrt((eta - 1) / (eta + 1)) in [0, 1]."""
+    x = np.linspace(0.0, 1.0, N_ETA) ** 2
+    return np.minimum((1 + x) / np.maximum(1 - x, 1.0 / ETA_MAX), ETA_MAX)
+
+
+def _eta_coordinate(eta):
+    """Column coordinate of IORs (N,) in the rise table, an IOR and its inverse alike."""
+    eta = np.clip(np.asarray(eta, np.float32), 1.0 / ETA_MAX, ETA_MAX)
+    x = np.abs(eta - 1) / (eta + 1)
+    return np.sqrt(x) * (N_ETA - 1)
 
 
 @functools.lru_cache(maxsize=1)
 def tables():
-    """(A, B) as (N_ROUGH, N_COS) float32 over roughness and cos theta_o in [0, 1]."""
+    """(A, B) as (N_ROUGH, N_COS) and R as (N_ROUGH, N_COS, N_ETA) float32
+    over roughness, cos theta_o in [0, 1] and the IOR axis (_eta_axis)."""
     cos = (np.arange(N_COS, dtype=np.float64) + 0.5) / N_COS
     rough = np.linspace(0.0, 1.0, N_ROUGH)
     alpha = np.maximum(rough ** 2, 1e-3)
+    etas = _eta_axis()
+    grid = (np.arange(N_BINS) + 0.5) / N_BINS
+    rise_grid = dielectric_rise(np.broadcast_to(grid[:, None], (N_BINS, N_ETA)), etas[None, :]).astype(np.float64)
     # Stratified samples on a 32 x 32 grid, the same for every entry.
     k = int(np.sqrt(N_SAMPLES))
     g = (np.arange(k) + 0.5) / k
@@ -41,9 +65,10 @@ def tables():
     ns = len(u)
     a_tab = np.zeros((N_ROUGH, N_COS))
     b_tab = np.zeros((N_ROUGH, N_COS))
+    r_tab = np.zeros((N_ROUGH, N_COS, N_ETA))
+    mu = np.repeat(cos, ns)
+    wo = np.stack([np.sqrt(1 - mu * mu), np.zeros_like(mu), mu], axis=1).astype(np.float32)
     for i, al in enumerate(alpha):
-        mu = np.repeat(cos, ns)
-        wo = np.stack([np.sqrt(1 - mu * mu), np.zeros_like(mu), mu], axis=1).astype(np.float32)
         al_rows = np.full(len(mu), al, np.float32)
         h = ggx_sample_visible_normal(wo, al_rows, np.tile(u, (N_COS, 1)))
         wo_h = np.sum(wo * h, axis=1)
@@ -55,13 +80,35 @@ def tables():
         m5 = np.clip(1.0 - wo_h, 0.0, 1.0) ** 5
         a_tab[i] = (w * (1 - m5)).reshape(N_COS, ns).mean(axis=1)
         b_tab[i] = (w * m5).reshape(N_COS, ns).mean(axis=1)
-    return a_tab.astype(np.float32), b_tab.astype(np.float32)
+        # The rise at each sample through a fine grid of cos(wo, h): the
+        # samples' weights binned per entry, times the curves on the grid.
+        bins = np.minimum((wo_h * N_BINS).astype(np.int64), N_BINS - 1) + np.repeat(np.arange(N_COS), ns) * N_BINS
+        binned = np.bincount(bins, weights=w, minlength=N_COS * N_BINS).reshape(N_COS, N_BINS)
+        r_tab[i] = binned @ rise_grid / ns
+    return a_tab.astype(np.float32), b_tab.astype(np.float32), r_tab.astype(np.float32)
 
 
-def albedo_terms(rough, cos):
-    """(A, B) at roughness and cos theta_o arrays: E = f0 A + f90 B (bilinear,
-    the four taps' indices and weights shared by both tables)."""
-    a_tab, b_tab = tables()
+@functools.lru_cache(maxsize=1)
+def _rise_average_table():
+    """2 int s_eta(mu) mu dmu over the rise table's IOR axis: the exact
+    curve's hemispherical (cosine-weighted) average share."""
+    mu = (np.arange(4096) + 0.5) / 4096
+    etas = _eta_axis()
+    rise = dielectric_rise(np.broadcast_to(mu, (N_ETA, len(mu))), etas[:, None])
+    return (2.0 * (rise * mu).mean(axis=1)).astype(np.float32)
+
+
+def rise_average(eta):
+    """(N,) cosine-weighted hemispherical average of dielectric_rise at IORs eta (N,)."""
+    return np.interp(_eta_coordinate(eta), np.arange(N_ETA), _rise_average_table()).astype(np.float32)
+
+
+def albedo_terms(rough, cos, eta=None):
+    """(A, B) at roughness and cos theta_o arrays: E = f0 A + f90 B for
+    Schlick's Fresnel (bilinear, the four taps' indices and weights shared by
+    both tables); with IORs eta, (A, B, R), R the albedo of the exact curve's
+    rise (trilinear)."""
+    a_tab, b_tab, r_tab = tables()
     x = np.clip(np.asarray(cos, np.float32) * N_COS - 0.5, 0, N_COS - 1)
     y = np.clip(np.asarray(rough, np.float32) * (N_ROUGH - 1), 0, N_ROUGH - 1)
     x0 = np.minimum(x.astype(np.int64), N_COS - 2)
@@ -72,7 +119,7 @@ def albedo_terms(rough, cos):
     i00 += x0
     taps = ((i00, gx * gy), (i00 + 1, fx * gy), (i00 + N_COS, gx * fy), (i00 + (N_COS + 1), fx * fy))
 
-    def read(table):
+    def read(table, taps):
         # ((t00 w00 + t01 w01) + t10 w10) + t11 w11, summed in place.
         flat = table.reshape(-1)
         out = tmp = None
@@ -84,32 +131,11 @@ def albedo_terms(rough, cos):
                 out += np.multiply(np.take(flat, index), w, out=tmp)
         return out.astype(np.float32)
 
-    return read(a_tab), read(b_tab)
-
-
-@functools.lru_cache(maxsize=1)
-def _dielectric_f90_table():
-    """f90 giving Schlick's Fresnel the hemispherical average of the exact
-    dielectric Fresnel with that normal reflectance, over f0 in [0, 1]."""
-    f0 = np.linspace(0.0, 1.0, 257)
-    eta = (1 + np.sqrt(f0)) / np.maximum(1 - np.sqrt(f0), 1e-6)
-    mu = (np.arange(2048) + 0.5) / 2048
-    c = mu[None, :]
-    g2 = eta[:, None] ** 2 - 1 + c * c
-    g = np.sqrt(np.maximum(g2, 0))
-    a = (g - c) / (g + c)
-    b = (c * (g + c) - 1) / (c * (g - c) + 1)
-    fresnel = np.where(g2 > 0, 0.5 * a * a * (1 + b * b), 1.0)
-    f_avg = 2 * (fresnel * c).mean(axis=1)
-    f90 = np.clip(f0 + 21 * (f_avg - f0), 0.0, 1.0)
-    f90[0] = 0.0
-    f90 = np.maximum.accumulate(f90)        # 1 once it got there (high IORs reach 1 too)
-    return f0.astype(np.float32), f90.astype(np.float32)
-
-
-def dielectric_f90(f0):
-    """Schlick's grazing reflectance for a dielectric of normal reflectance f0:
-    1 for ordinary IORs, falling to 0 as the IOR approaches 1 (Specular IOR
-    Level 0 makes the Principled BSDF's dielectric layer vanish, as in Cycles)."""
-    grid, table = _dielectric_f90_table()
-    return np.interp(np.asarray(f0, np.float32), grid, table).astype(np.float32)
+    if eta is None:
+        return read(a_tab, taps), read(b_tab, taps)
+    z = _eta_coordinate(eta)
+    z0 = np.minimum(z.astype(np.int64), N_ETA - 2)
+    fz = z - z0
+    gz = 1 - fz
+    deep = tuple((index * N_ETA + z0 + k, w * wz) for index, w in taps for k, wz in ((0, gz), (1, fz)))
+    return read(a_tab, taps), read(b_tab, taps), read(r_tab, deep)

@@ -16,6 +16,7 @@ import numpy as np
 from ..bsdfs import bsdf
 from ..geometry.interaction import SurfaceHits
 from ..util.rows import gather, scatter
+from .lobe_rows import add_lobes
 from .shader import CompiledShader, SurfaceGeometry, WorldGeometry
 
 DEFAULT_ROUGHNESS = 0.5
@@ -46,12 +47,7 @@ class SceneShading:
                 row = params_of(closure, 1)
                 for name in ("diffuse", "f0", "alpha", "p_spec", "f90", "layered", "layer_f0"):
                     getattr(table, name)[i] = getattr(row, name)[0]
-                if row.sheen is not None:
-                    _add_sheen(table, [i], row)
-                if row.spec_ss is not None:
-                    _add_single_scatter(table, [i], row)
-                if row.velvet is not None:
-                    _add_velvet(table, [i], row)
+                add_lobes(table, [i], row)
                 self.emission[i] = closure.get("emission", 1)[0]
                 self.transparent_row[i] = _pass_probability(closure, 1)[0]
                 self.holdout_row[i] = np.clip(closure.get("holdout", 1)[0], 0, 1)
@@ -109,9 +105,12 @@ def params_of(closure, n):
     velvet = None
     if "velvet" in closure.fields:
         velvet = (closure.get("velvet", n), closure.averaged("velvet_sigma", n, 0.5))
+    exact = None
+    if "spec_exact" in closure.fields:
+        exact = (closure.get("spec_exact", n), closure.averaged("spec_ior", n, 1.5))
     p = bsdf.lobe_params(closure.get("diffuse", n) + layered, closure.get("specular", n),
                          closure.averaged("spec_rough", n, DEFAULT_ROUGHNESS),
-                         closure.get("spec_edge", n), glass, velvet)
+                         closure.get("spec_edge", n), glass, velvet, exact)
     p.layered = layered
     p.layer_f0 = closure.averaged("layer_f0", n, 0.0)
     if "spec_ss" in closure.fields:
@@ -161,14 +160,7 @@ def surface_params(scene, surf, camera_ray=False):
         scatter(params.f90, rows, p.f90)
         scatter(params.layered, rows, p.layered)
         params.layer_f0[rows] = p.layer_f0
-        if p.has_glass:
-            _add_glass(params, rows, p)
-        if p.sheen is not None:
-            _add_sheen(params, rows, p)
-        if p.spec_ss is not None or params.spec_ss is not None:
-            _add_single_scatter(params, rows, p)
-        if p.velvet is not None or params.velvet is not None:
-            _add_velvet(params, rows, p)
+        add_lobes(params, rows, p)
         params.alpha[rows] = p.alpha
         params.p_spec[rows] = p.p_spec
         if closure.normal_sum is not None:
@@ -341,48 +333,6 @@ def _needs_hits(closure):
                for k in ("transmission", "trans_refl"))
 
 
-def _add_glass(params, rows, p):
-    """Scatter the glass lobe of rows' parameters p into params, creating the
-    glass fields (zero elsewhere) on first use."""
-    n = len(params.alpha)
-    if not params.has_glass:
-        params.glass_r = np.zeros((n, 3), np.float32)
-        params.glass_t = np.zeros((n, 3), np.float32)
-        params.ior = np.ones(n, np.float32)
-        params.alpha_g = np.ones(n, np.float32)
-        params.p_glass = np.zeros(n, np.float32)
-        params.eta = np.ones(n, np.float32)
-    scatter(params.glass_r, rows, p.glass_r)
-    scatter(params.glass_t, rows, p.glass_t)
-    for name in ("ior", "alpha_g", "p_glass", "eta", "p_spec"):
-        getattr(params, name)[rows] = getattr(p, name)
-
-
-def _add_sheen(params, rows, p):
-    """Scatter the sheen of rows' parameters p into params, creating the
-    sheen fields (no sheen elsewhere) on first use."""
-    if params.sheen is None:
-        params.sheen = np.zeros((len(params.alpha), 3), np.float32)
-        params.sheen_rough = np.full(len(params.alpha), 0.5, np.float32)
-    scatter(params.sheen, np.asarray(rows), p.sheen)
-    params.sheen_rough[rows] = p.sheen_rough
-    if p.sheen_free is not None or params.sheen_free is not None:
-        if params.sheen_free is None:
-            params.sheen_free = np.zeros(len(params.alpha), np.float32)
-        params.sheen_free[rows] = 0.0 if p.sheen_free is None else p.sheen_free
-
-
-def _add_velvet(params, rows, p):
-    """Scatter the velvet lobe of rows' parameters p (None: none) into
-    params, creating its fields (no velvet elsewhere) on first use."""
-    if params.velvet is None:
-        params.velvet = np.zeros((len(params.alpha), 3), np.float32)
-        params.velvet_sigma = np.full(len(params.alpha), 0.5, np.float32)
-    rows = np.asarray(rows)
-    scatter(params.velvet, rows, 0.0 if p.velvet is None else p.velvet)
-    params.velvet_sigma[rows] = 0.5 if p.velvet is None else p.velvet_sigma
-
-
 def valid_reflection_normal(ng, wo, n):
     """A bent shading normal raised toward ng just enough that wo mirrored about
     it stays above the surface, as Cycles does for normal and bump maps
@@ -441,12 +391,3 @@ def triangle_emission(scene, subset=None):
         bary = np.full((len(tris), 2), 1 / 3, np.float32)
         scatter(em, local, emission_at_points(scene, tris, centre, n, n, bary))
     return em
-
-
-def _add_single_scatter(params, rows, p):
-    """Scatter the single-scattering share of rows' GGX lobes (p.spec_ss;
-    None: multiscatter) into params, creating the field (zero elsewhere)
-    on first use."""
-    if params.spec_ss is None:
-        params.spec_ss = np.zeros(len(params.alpha), np.float32)
-    params.spec_ss[rows] = 0.0 if p.spec_ss is None else p.spec_ss

@@ -66,6 +66,8 @@ class GlossySamples:
                             # (0 below the shading normal); -1: the pixel takes no part
     f0: np.ndarray          # (P, 3)
     f90: np.ndarray         # (P, 3)
+    f_exact: np.ndarray     # (P, 3) the share rising by the exact dielectric curve ...
+    spec_ior: np.ndarray    # (P,) ... of this IOR (BSDFParams)
     x2: np.ndarray          # (P, 3) sample point
     ng2: np.ndarray         # (P, 3) its geometric normal (facing the pixel's visible point)
     lo: np.ndarray          # (P, 3) its radiance toward the visible point
@@ -75,7 +77,7 @@ class GlossySamples:
     def allocate(n):
         vec = lambda: np.empty((n, 3), np.float32)  # noqa: E731
         return GlossySamples(vec(), np.empty(n, np.float32), np.empty(n, np.float32), vec(), vec(), vec(),
-                             vec(), vec(), np.empty(n, bool))
+                             np.empty(n, np.float32), vec(), vec(), vec(), np.empty(n, bool))
 
     @staticmethod
     def of_range(gb, res):
@@ -83,7 +85,8 @@ class GlossySamples:
         (read before anything merges into them; their kinds must be set)."""
         n = len(gb.valid)
         out = GlossySamples(np.zeros((n, 3), np.float32), np.zeros(n, np.float32), np.full(n, -1.0, np.float32),
-                            np.zeros((n, 3), np.float32), np.ones((n, 3), np.float32), res.x2.copy(),
+                            np.zeros((n, 3), np.float32), np.ones((n, 3), np.float32),
+                            np.zeros((n, 3), np.float32), np.ones(n, np.float32), res.x2.copy(),
                             res.ng2.copy(), res.lo.copy(), np.zeros(n, bool))
         idx = gb.index
         if len(idx) == 0:
@@ -97,6 +100,9 @@ class GlossySamples:
         scatter(out.f0, pix, gather(params.f0, rows))
         if params.f90 is not None:
             scatter(out.f90, pix, gather(params.f90, rows))
+        if params.f_exact is not None:
+            scatter(out.f_exact, pix, gather(params.f_exact, rows))
+            out.spec_ior[pix] = np.take(params.spec_ior, rows)
         out.has = res.has_sample & (res.prim2 >= 0) & (res.kind == bsdf.KIND_GLOSSY) & (out.p_spec > 0)
         return out
 
@@ -120,7 +126,8 @@ def _lobe_terms(img, gs, pix, samples, with_f):
     t, b = orthonormal_basis(n)     # the first pass's shading frames (ShadingFrame.at)
     q = np.take(gs.p_spec, pix)
     params = bsdf.BSDFParams(np.zeros((len(pix), 3), np.float32), gather(gs.f0, pix), np.take(gs.alpha, pix),
-                             (q > 0).astype(np.float32), gather(gs.f90, pix))
+                             (q > 0).astype(np.float32), gather(gs.f90, pix),
+                             f_exact=gather(gs.f_exact, pix), spec_ior=np.take(gs.spec_ior, pix))
     wo_l = to_local(gather(gs.wo, pix), t, b, n).astype(np.float32)
     to = gs.x2[samples] - img.p[pix]
     d2 = np.maximum(dot(to, to), np.float32(1e-30))

@@ -15,6 +15,9 @@ arrays:
   two glossy lobes of different roughness become one of their mean roughness;
   ``spec_edge`` its reflectance at grazing incidence (white for Fresnel
   lobes, the colour for a Glossy BSDF, which Cycles gives no Fresnel);
+  ``spec_exact`` the part of spec_edge - specular that rises along the
+  exact dielectric Fresnel curve of the weight-averaged ``spec_ior``
+  (Principled's dielectric layer and coat) instead of Schlick's;
   ``spec_ss`` the weight-averaged share of those lobes that scatter once
   (distribution GGX: no multiple-scattering energy put back; Multiscatter
   GGX, the default, gives 0).
@@ -44,12 +47,15 @@ stays a handful of numbers until ``Closure.lobes`` spreads it over the hits.
 
 import numpy as np
 
-COLOR_FIELDS = ("diffuse", "layered", "specular", "spec_edge", "transmission", "trans_refl",
+COLOR_FIELDS = ("diffuse", "layered", "specular", "spec_edge", "spec_exact", "transmission", "trans_refl",
                 "transparent", "translucent", "emission", "sheen", "velvet")
-# Scalars summed with a weight and divided by it at the end: name -> (weight, lobe it averages over).
+# Scalars summed with a weight and divided by it at the end: name -> (weight,
+# lobe or lobes it averages over; a glass lobe's parts both count, so a black
+# refraction keeps its reflection's IOR and roughness).
 AVERAGED = {"spec_rough": ("spec_w", "specular"), "spec_ss": ("spec_w", "specular"),
-            "trans_rough": ("trans_w", "transmission"),
-            "ior": ("trans_w", "transmission"), "layer_f0": ("layer_w", "layered"),
+            "spec_ior": ("exact_w", "spec_exact"),
+            "trans_rough": ("trans_w", ("transmission", "trans_refl")),
+            "ior": ("trans_w", ("transmission", "trans_refl")), "layer_f0": ("layer_w", "layered"),
             "sheen_rough": ("sheen_w", "sheen"), "sheen_free": ("sheen_w", "sheen"),
             "velvet_sigma": ("velvet_w", "velvet")}
 BSDF_LOBES = ("diffuse", "layered", "specular", "transmission", "translucent", "sheen", "velvet")
@@ -83,7 +89,7 @@ class Closure:
                 c.fields[k] = v * (w[..., None] if w.ndim else w)
         for k, (wk, source) in AVERAGED.items():
             if k in lobes and lobes[k] is not None:
-                lobe_w = _weight_of(c.fields.get(source))
+                lobe_w = _lobe_weight(c, source)
                 c.fields[k] = _f32(lobes[k]) * lobe_w
                 c.fields[wk] = lobe_w
         if normal is not None:
@@ -138,6 +144,12 @@ class Closure:
         length = np.sqrt((v * v).sum(axis=1))
         ok = length > 1e-8
         return np.where(ok[:, None], v / np.where(ok, length, 1)[:, None], fallback).astype(np.float32)
+
+
+def _lobe_weight(c, source):
+    """The weight of the lobe or lobes ``source`` (a field name or a tuple of them)."""
+    names = (source,) if isinstance(source, str) else source
+    return sum(_weight_of(c.fields.get(name)) for name in names)
 
 
 def _weight_of(color):

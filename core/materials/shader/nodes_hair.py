@@ -17,6 +17,7 @@ tolerance).
 
 import numpy as np
 
+from ...bsdfs.fresnel import fresnel_and_cos_t
 from .closure import Closure
 from .evaluate import node
 
@@ -42,15 +43,6 @@ def _column(x):
     return np.atleast_1d(np.asarray(x, np.float32)).reshape(-1, 1)
 
 
-def _fresnel(cos_i, eta):
-    """Unpolarised Fresnel reflectance of a dielectric of relative index eta."""
-    sin_t2 = (1.0 - cos_i ** 2) / eta ** 2
-    cos_t = np.sqrt(np.clip(1.0 - sin_t2, 0.0, 1.0))
-    rs = (cos_i - eta * cos_t) / (cos_i + eta * cos_t)
-    rp = (eta * cos_i - cos_t) / (eta * cos_i + cos_t)
-    return np.where(sin_t2 >= 1.0, 1.0, 0.5 * (rs * rs + rp * rp))
-
-
 _H = (np.arange(16) + 0.5) / 16.0       # offsets across the fibre (by symmetry, 0 to 1)
 
 
@@ -61,7 +53,7 @@ def fibre_split(sigma, eta=1.55):
     R and the paths after it (TRT, ...) come back, TT goes on."""
     cos_i = np.sqrt(1.0 - _H ** 2)
     cos_t = np.sqrt(1.0 - (_H / eta) ** 2)
-    f = _fresnel(cos_i, eta)[None, :, None]
+    f = fresnel_and_cos_t(cos_i, np.full(len(cos_i), eta))[0][None, :, None]
     t = np.exp(-2.0 * np.asarray(sigma, np.float64)[:, None, :] * cos_t[None, :, None])
     back = f + (1.0 - f) ** 2 * f * t * t / (1.0 - f * t)
     through = (1.0 - f) ** 2 * t

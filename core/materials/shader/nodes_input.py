@@ -11,6 +11,7 @@ smooth at that scale.
 
 import numpy as np
 
+from ...bsdfs.fresnel import fresnel_dielectric
 from .evaluate import f32, node, varying
 
 BUMP_OFFSET = 1e-4      # of the scene extent
@@ -29,17 +30,6 @@ def _dot(a, b):
 def _cross(a, b):
     a, b = np.broadcast_arrays(a, b)
     return np.cross(a, b).astype(np.float32)
-
-
-def fresnel_dielectric_cos(cosi, eta):
-    c = np.abs(cosi)
-    g = eta * eta - 1 + c * c
-    ok = g > 0
-    g = np.sqrt(np.where(ok, g, 0))
-    a = (g - c) / np.where(g + c != 0, g + c, 1)
-    den = c * (g - c) + 1
-    b = (c * (g + c) - 1) / np.where(den != 0, den, 1)
-    return np.where(ok, 0.5 * a * a * (1 + b * b), 1.0).astype(np.float32)
 
 
 def _surface_normal(inp, geom, name="Normal"):
@@ -182,7 +172,7 @@ def fresnel(inp, geom, n, sh):
     eta = np.maximum(inp.float("IOR", 1.5), 1e-5)
     eta = np.where(geom.backfacing > 0, 1 / eta, eta)
     cos = _dot(geom.incoming, _surface_normal(inp, geom))
-    return {"Fac": fresnel_dielectric_cos(cos, eta)}
+    return {"Fac": fresnel_dielectric(cos, eta)[0]}
 
 
 @varying
@@ -192,7 +182,7 @@ def layer_weight(inp, geom, n, sh):
     cos = _dot(geom.incoming, _surface_normal(inp, geom))
     eta = np.maximum(1 - blend, 1e-5)
     eta = np.where(geom.backfacing > 0, eta, 1 / eta)
-    fres = fresnel_dielectric_cos(cos, eta)
+    fres = fresnel_dielectric(cos, eta)[0]
     b = np.clip(blend, 0, 1 - 1e-5)
     b = np.where(b < 0.5, 2 * b, 0.5 / (1 - b))
     facing = np.where(blend != 0.5, np.power(np.abs(cos), b), np.abs(cos))

@@ -42,7 +42,7 @@ sheen over the other lobes.
 
 import numpy as np
 
-from ...bsdfs.microfacet_albedo import dielectric_f90
+from ...bsdfs.bsdf import layer_ior
 from .closure import BSDF_LOBES, Closure
 from .evaluate import f32, node
 
@@ -74,11 +74,11 @@ def principled(inp, geom, n, sh):
     metallic = np.clip(inp.float("Metallic", 0.0), 0, 1)
     rough = np.clip(inp.float("Roughness", 0.5), 0, 1)
     # The specular layer's Fresnel takes an IOR below one as Cycles does: the
-    # normal reflectance of 1 / IOR, and a mirror at 0 (older glTF imports
-    # wrote 0). Cycles' reflection beyond the critical angle of 0 < IOR < 1
-    # is not reproduced. The glass part refracts with an IOR of at least one.
-    layer_ior = np.maximum(inp.float("IOR", 1.5), 0.0)
-    ior = np.maximum(layer_ior, 1.0)
+    # normal reflectance of 1 / IOR, total reflection beyond the critical
+    # angle, and a mirror at 0 (older glTF imports wrote 0). The glass part
+    # refracts with an IOR of at least one.
+    ior_in = np.maximum(inp.float("IOR", 1.5), 0.0)
+    ior = np.maximum(ior_in, 1.0)
     alpha = np.clip(inp.float("Alpha", 1.0), 0, 1)
     level = np.maximum(inp.float("Specular IOR Level", 0.5), 0)
     spec_tint = np.clip(inp.color("Specular Tint", (1, 1, 1)), 0, None)
@@ -89,8 +89,8 @@ def principled(inp, geom, n, sh):
     normal = _normal(inp, geom)
 
     dielectric = 1 - metallic
-    f0_d = np.minimum(_f0_from_ior(layer_ior) * 2 * level, 1.0)
-    f0_d = _c(f0_d) * spec_tint
+    f0_untinted = np.minimum(_f0_from_ior(ior_in) * 2 * level, 1.0)
+    f0_d = _c(f0_untinted) * spec_tint
     # As Cycles: a base colour above one brightens the diffuse part only; the
     # metal's f0 and the glass's tint take it clamped to one.
     clamped = np.minimum(base, 1.0)
@@ -103,19 +103,26 @@ def principled(inp, geom, n, sh):
     trans_refl = _c(dielectric * trans) * spec_tint
     below = 1.0
     if np.any(coat > 0):
-        f0_coat = _f0_from_ior(np.maximum(inp.float("Coat IOR", 1.5), 1.0))
+        coat_ior = np.maximum(inp.float("Coat IOR", 1.5), 1.0)
+        f0_coat = _f0_from_ior(coat_ior)
         tint = 1 + _c(coat) * (np.clip(inp.color("Coat Tint", (1, 1, 1)), 0, None) - 1)
         below = tint * _c(1 - coat * f0_coat)
+    # The dielectric layer's Fresnel rises from f0 to one along the exact
+    # curve of the IOR that f0 stands for (Cycles' remapped real Fresnel).
+    layer = _c(dielectric * (1 - trans))
     lobes = Closure.bsdf(1.0, None, layered=diffuse * below, layer_f0=f0_d.mean(axis=-1),
                          specular=specular * below,
-                         spec_edge=(_c(metallic) + _c(dielectric) * _c(dielectric_f90(f0_d.mean(axis=-1))))
-                         * np.ones((1, 3), np.float32) * below,
+                         spec_edge=(_c(metallic) + layer) * np.ones((1, 3), np.float32) * below,
+                         spec_exact=layer * (1 - f0_d) * below,
+                         spec_ior=layer_ior(f0_untinted, ior_in),
                          spec_rough=rough, spec_ss=_single_scatter(inp), transmission=transmission * below,
                          trans_refl=trans_refl * below,
                          trans_rough=rough, ior=ior)
     if np.any(coat > 0):
         lobes = lobes + Closure.bsdf(1.0, None, specular=_c(coat * f0_coat) * np.ones(3, np.float32),
                                      spec_edge=_c(coat) * np.ones(3, np.float32),
+                                     spec_exact=_c(coat * (1 - f0_coat)) * np.ones(3, np.float32),
+                                     spec_ior=coat_ior,
                                      spec_rough=np.clip(inp.float("Coat Roughness", 0.03), 0, 1))
     sheen = np.clip(inp.float("Sheen Weight", 0.0), 0, None)
     if np.any(sheen > 0):

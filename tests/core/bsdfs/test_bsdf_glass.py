@@ -11,6 +11,7 @@ import pytest
 from support.chi2 import ChiSquareTest, integrate, log_spherical_domain, spherical_domain
 from restir_gi.core.bsdfs import glass as glass
 from restir_gi.core.bsdfs.microfacet import ALPHA_MIN
+from support.optics import fresnel_ref
 
 PHI_WO = 0.7
 N = 400_000
@@ -52,20 +53,6 @@ def weights(wi, f, pdf):
 
 # --- plain scalar formulas, written independently of the module --------------------
 
-def fresnel_ref(theta_i, eta):
-    """Unpolarised Fresnel from the angle forms: R_s = sin^2(ti - tt) / sin^2(ti + tt),
-    R_p = tan^2(ti - tt) / tan^2(ti + tt)."""
-    s = math.sin(theta_i) / eta
-    if s >= 1:
-        return 1.0
-    if theta_i == 0:
-        return ((eta - 1) / (eta + 1)) ** 2
-    tt = math.asin(s)
-    rs = (math.sin(theta_i - tt) / math.sin(theta_i + tt)) ** 2
-    rp = (math.tan(theta_i - tt) / math.tan(theta_i + tt)) ** 2
-    return 0.5 * (rs + rp)
-
-
 def ggx_d_ref(cos_h, a):
     c2 = cos_h * cos_h
     return a * a / (math.pi * (c2 * (a * a - 1) + 1) ** 2) if cos_h > 0 else 0.0
@@ -98,41 +85,6 @@ def walter_ref(o, i, a, eta):
     den = (eta_i * ih + eta_o * oh) ** 2
     f = abs(ih) * abs(oh) / (abs(i[2]) * o[2]) * eta_o ** 2 * (1 - F) * G2 * D / den
     return f, (1 - F) * d_wo * eta_i ** 2 * abs(ih) / den
-
-
-# --- 1. Fresnel ----------------------------------------------------------------------
-
-def test01_fresnel_dielectric():
-    F, cos_t = glass.fresnel_dielectric(np.float32([1.0, 1.0]), np.float32([1.5, 1 / 1.5]))
-    assert F.dtype == np.float32 and np.allclose(F, 0.04, atol=1e-7)     # ((eta - 1) / (eta + 1))^2
-    assert np.allclose(cos_t, 1.0)
-    # Brewster's angle, tan = eta: R_p = 0, so F = R_s / 2 = ((eta^2 - 1) / (eta^2 + 1))^2 / 2.
-    eta = 1.5
-    F, _ = glass.fresnel_dielectric(np.float32([math.cos(math.atan(eta))]), np.float32([eta]))
-    assert F[0] == pytest.approx(((eta ** 2 - 1) / (eta ** 2 + 1)) ** 2 / 2, rel=1e-5)
-    # Textbook value: glass at 45 degrees reflects 5.0% (R_s 9.2%, R_p 0.85%).
-    F, cos_t = glass.fresnel_dielectric(np.float32([math.sqrt(0.5)]), np.float32([1.5]))
-    assert F[0] == pytest.approx(0.0503, abs=1e-4)
-    assert cos_t[0] == pytest.approx(math.sqrt(1 - 0.5 / 2.25), rel=1e-6)
-    # Against the angle-form reference, both ways across the interface.
-    theta = np.linspace(0, 0.5 * math.pi - 1e-3, 200)
-    for eta in (1.5, 1 / 1.5, 1.33, 2.4, 1 / 2.4):
-        F, cos_t = glass.fresnel_dielectric(np.cos(theta).astype(np.float32), col(eta, len(theta)))
-        assert np.allclose(F, [fresnel_ref(t, eta) for t in theta], rtol=1e-4, atol=2e-6)
-        assert ((0 <= F) & (F <= 1)).all()
-        # Reflectance is the same from either side (Stokes): F(cos_i, eta) = F(cos_t, 1 / eta).
-        ok = F < 1
-        back, _ = glass.fresnel_dielectric(cos_t[ok], col(1 / eta, ok.sum()))
-        assert np.allclose(back, F[ok], rtol=1e-3, atol=1e-5)      # float32 cos_t near grazing
-    # Total internal reflection beyond the critical angle, sin = eta, and not before.
-    eta = 1 / 1.5
-    c = math.sqrt(1 - eta * eta)
-    F, cos_t = glass.fresnel_dielectric(np.float32([c - 1e-3, 0.3, 0.0, c + 1e-3]), col(eta, 4))
-    assert (F[:3] == 1).all() and (cos_t[:3] == 0).all()
-    assert 0.5 < F[3] < 1 and cos_t[3] > 0
-    # Index-matched: no reflection, no bending.
-    F, cos_t = glass.fresnel_dielectric(np.float32([1.0, 0.5, 0.01]), col(1.0, 3))
-    assert np.allclose(F, 0, atol=1e-12) and np.allclose(cos_t, [1.0, 0.5, 0.01])
 
 
 # --- 2. eval against the scalar reference, sample against eval -----------------------------
