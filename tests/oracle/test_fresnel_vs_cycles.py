@@ -44,7 +44,6 @@ def sphere_scene():
         obj.name = name
         bpy.ops.object.shade_smooth()
         mat = bpy.data.materials.new(name)
-        mat.use_nodes = True
         bsdf = mat.node_tree.nodes["Principled BSDF"]
         bsdf.inputs["Base Color"].default_value = (0.0, 0.0, 0.0, 1.0)
         for key, value in inputs.items():
@@ -60,7 +59,6 @@ def sphere_scene():
     scene.camera = camera
     world = bpy.data.worlds.new("white")
     scene.world = world
-    world.use_nodes = True
     world.node_tree.nodes["Background"].inputs["Color"].default_value = (1.0, 1.0, 1.0, 1.0)
     world.node_tree.nodes["Background"].inputs["Strength"].default_value = 1.0
     return scene
