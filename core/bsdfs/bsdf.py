@@ -21,8 +21,10 @@ from ..util.vectors import dot, luminance
 from .fresnel import dielectric_rise, ior_from_f0, schlick
 from .microfacet import ALPHA_MIN, ggx_d, ggx_g1, ggx_lambda, ggx_sample_visible_normal
 from .glass import glass_eval, glass_sample
+from .glass_albedo import at_view as glass_at_view
 from .microfacet_albedo import albedo_terms, rise_average
 from .sheen import add_lobe, at_view as sheen_at_view, ltc_sample
+from .velvet import add_velvet
 
 
 @dataclass
@@ -162,7 +164,8 @@ def at_view(params, wo):
     as Cycles' precomputed albedo tables do (core/bsdfs/microfacet_albedo.py): the
     layered diffuse keeps 1 - E of the dielectric layer above it, and the GGX
     lobe is scaled up by the energy single scattering loses (Multiscatter
-    GGX; not the share ``spec_ss`` of lobes with Cycles' plain GGX)."""
+    GGX; not the share ``spec_ss`` of lobes with Cycles' plain GGX), and so
+    is a reflecting glass lobe (glass_albedo.py; params.eta must be set)."""
     n = len(params.alpha)
     if n == 0:
         return params
@@ -205,6 +208,8 @@ def at_view(params, wo):
     params.f90 = (f90 * boost).astype(np.float32)
     if params.f_exact is not None:
         params.f_exact = (params.f_exact * boost).astype(np.float32)
+    if params.has_glass:
+        glass_at_view(params, cos)
     if params.sheen is not None:
         sheen_at_view(params, cos)
     return params
@@ -242,15 +247,15 @@ def lobe_params(diffuse, f0, roughness, f90=None, glass=None, velvet=None, exact
                    None if f90 is None else np.ascontiguousarray(f90, np.float32))
     if glass is not None:
         n = len(p.alpha)
-        p.glass_r = np.ascontiguousarray(np.broadcast_to(glass[0], (n, 3)), np.float32)
-        p.glass_t = np.ascontiguousarray(np.broadcast_to(glass[1], (n, 3)), np.float32)
+        p.glass_r = np.array(np.broadcast_to(glass[0], (n, 3)), np.float32)
+        p.glass_t = np.array(np.broadcast_to(glass[1], (n, 3)), np.float32)
         p.ior = np.array(np.broadcast_to(np.maximum(glass[2], 1.0), (n,)), np.float32)
         p.alpha_g = np.array(np.maximum(np.broadcast_to(glass[3], (n,)) ** 2, ALPHA_MIN), np.float32)
         p.p_glass = np.where(total > 0, wg / safe, 0.0).astype(np.float32)
         p.eta = p.ior.copy()
     if velvet is not None:
         n = len(p.alpha)
-        p.velvet = np.ascontiguousarray(np.broadcast_to(velvet[0], (n, 3)), np.float32)
+        p.velvet = np.array(np.broadcast_to(velvet[0], (n, 3)), np.float32)
         p.velvet_sigma = np.array(np.broadcast_to(velvet[1], (n,)), np.float32)
     if exact is not None:
         n = len(p.alpha)
@@ -298,7 +303,7 @@ def _lobes(params, wo, wi, want_f, want_pdf):
     if params.has_sheen:
         add_lobe(params, wo, wi, p_sheen, f, p)
     if want_f and params.velvet is not None:
-        _velvet_lobe(params, wo, wi, f)
+        add_velvet(params, wo, wi, f)
     spec = (p_spec > 0) & wi_up
     if not spec.any():
         return f, p
@@ -377,35 +382,6 @@ def _glass_lobe(params, wo, wi, p_glass, f, p):
         scatter_add(f, rows, (gf * tint).astype(np.float32))
     if p is not None:
         p[rows] = np.take(p, rows) + np.take(p_glass, rows) * gp
-
-
-def velvet_f(wo, wi, sigma):
-    """(N,) Cycles' Ashikhmin velvet (bsdf_ashikhmin_velvet.h; Ashikhmin,
-    Premoze and Shirley 2000): f = D G / (4 cos_o cos_i) without the cosine,
-    D = exp(-cot^2(h) / sigma^2) / (pi sigma^2 sin^4(h)) an inverted
-    Gaussian of the half vector h's angle to the normal, G = min(1,
-    2 cos(h) cos_o / (h . wo), 2 cos(h) cos_i / (h . wo)); sigma at least
-    0.01. Zero unless both directions lie above the surface."""
-    cos_o, cos_i = wo[:, 2], wi[:, 2]
-    h = _half(wo, wi)
-    cos_nh = h[:, 2]
-    cos_hi = np.abs(dot(wo, h))
-    ok = (cos_o > 0) & (cos_i > 0) & (np.abs(cos_nh) < 1.0 - 1e-5) & (cos_hi > 1e-5)
-    ratio = np.maximum(cos_nh / np.where(ok, cos_hi, 1.0), 1e-5)
-    g = np.minimum(1.0, np.minimum(2.0 * ratio * cos_o, 2.0 * ratio * cos_i))
-    sin2 = np.where(ok, 1.0 - cos_nh * cos_nh, 1.0)
-    inv_s2 = 1.0 / np.maximum(np.asarray(sigma, np.float64), 0.01) ** 2
-    d = np.exp(-(cos_nh * cos_nh / sin2) * inv_s2) * inv_s2 * INV_PI / (sin2 * sin2)
-    f = 0.25 * d * g / np.maximum(cos_o * cos_i, 1e-12)
-    return np.where(ok, f, 0.0).astype(np.float32)
-
-
-def _velvet_lobe(params, wo, wi, f):
-    """Add the velvet lobe's f into f (in place), on the rows that have one."""
-    rows = np.nonzero(row_max(params.velvet) > 0)[0]
-    if len(rows):
-        v = velvet_f(gather(wo, rows), gather(wi, rows), np.take(params.velvet_sigma, rows))
-        scatter_add(f, rows, scale(gather(params.velvet, rows), v))
 
 
 def _p_sheen(params, wo):

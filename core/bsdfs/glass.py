@@ -42,8 +42,8 @@ same images for closed objects with camera and lights outside them, since the
 factors cancel on the way in and out; they differ for open refracting
 surfaces (a single-sided glass pane) and for cameras or lights inside a medium.
 
-Not included: Cycles' multiple-scattering energy compensation (its ggx_glass_E
-tables), so rough glass loses some energy (tests/core/bsdfs/test_bsdf_glass.py lists how much).
+Cycles' multiple-scattering compensation is not in the lobe: at_view
+(bsdf.py) scales it by the tables of glass_albedo.py.
 """
 
 import numpy as np

@@ -59,9 +59,9 @@ class ShadingFrame:
         if params.smooth_n is not None:     # normals bent by maps: the smooth one, locally
             params.smooth_n = to_local(params.smooth_n, t, b, surf.ns).astype(np.float32)
         wo_local = to_local(surf.wo, t, b, surf.ns)
-        bsdf.at_view(params, wo_local)
         if params.has_glass:    # the IOR as the ray meets it: inverted leaving the object
             params.eta = np.where(surf.front, params.ior, 1.0 / params.ior).astype(np.float32)
+        bsdf.at_view(params, wo_local)
         return ShadingFrame(params, t, b, wo_local)
 
     def subset(self, index):

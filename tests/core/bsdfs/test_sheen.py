@@ -10,7 +10,7 @@ import numpy as np
 import pytest
 
 from support.chi2 import ChiSquareTest, integrate, spherical_domain
-from restir_gi.core.bsdfs import bsdf, sheen
+from restir_gi.core.bsdfs import bsdf, sheen, velvet
 from restir_gi.core.materials.shading import params_of
 from restir_gi.core.materials.shader.closure import Closure
 
@@ -242,10 +242,10 @@ def test10_ashikhmin_is_cycles_velvet(rng):
     wo[:, 2], wi[:, 2] = np.abs(wo[:, 2]), np.where(np.arange(n) < 20, -1, 1) * np.abs(wi[:, 2])
     wo, wi = ((v / np.linalg.norm(v, axis=1, keepdims=True)).astype(np.float32) for v in (wo, wi))
     sigma = rng.uniform(0.0, 1.0, n).astype(np.float32)
-    got = bsdf.velvet_f(wo, wi, sigma)
+    got = velvet.velvet_f(wo, wi, sigma)
     want = [_velvet_scalar(wo[i].astype(np.float64), wi[i].astype(np.float64), float(sigma[i])) for i in range(n)]
     np.testing.assert_allclose(got, want, rtol=2e-4, atol=1e-6)
-    np.testing.assert_allclose(bsdf.velvet_f(wi, wo, sigma), got, rtol=2e-4, atol=1e-6)
+    np.testing.assert_allclose(velvet.velvet_f(wi, wo, sigma), got, rtol=2e-4, atol=1e-6)
     for rough, cos_wo in ((0.35, 0.2), (0.6, 0.5), (1.0, 0.95)):
         c = Closure.bsdf(velvet=np.array([0.9, 0.6, 0.3], np.float32), velvet_sigma=rough)
         p, wo_b, s_wi, s_f, s_pdf = draw(c, direction(cos_wo), rng)
