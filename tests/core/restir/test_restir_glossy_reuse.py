@@ -28,18 +28,23 @@ MAX_BOUNCES = 3
 RUNS = 96
 
 
-def metal_wall_scene(size=SIZE):
+WALLS = {"metal": {"base_color": (0.9, 0.85, 0.8), "metallic": 1.0, "roughness": 0.35},
+         # A dark dielectric: its specular layer reflects by the exact Fresnel curve (f_exact).
+         "dielectric": {"base_color": (0.05, 0.05, 0.08), "specular": 0.5, "ior": 1.45, "roughness": 0.3}}
+
+
+def metal_wall_scene(size=SIZE, wall="metal"):
     """The Cornell box (area light) with a rough metal back wall, and a
     pillar just in front of it that hides much of the room from the wall
     beside it (so that visibility differs between neighbours); every other
-    surface Lambertian."""
+    surface Lambertian. wall: the back wall's material (WALLS)."""
     scene = with_pillar(cornell_box("area", size, size))
     scene.filter_width = 0.0
     base = scene.materials
     scene.materials = Materials.from_list([
         {"name": base.names[i], "base_color": tuple(base.base_color[i]), "specular": 0.0,
          "emission": tuple(base.emission[i])} for i in range(len(base))]
-        + [{"name": "metal", "base_color": (0.9, 0.85, 0.8), "metallic": 1.0, "roughness": 0.35}])
+        + [{"name": wall, **WALLS[wall]}])
     centre = scene.vertices[scene.triangles].mean(axis=1)
     back = np.abs(centre[:, 1] - 1.0) < 1e-4
     scene.material_ids = np.where(back, len(base), scene.material_ids).astype(np.int32)
@@ -123,6 +128,19 @@ def test02_without_neighbours_it_is_the_pixel_own_estimate(ctx):
     own, gs, img = first_pass(ctx, 2)
     alone = reuse_glossy(ctx, img, gs, 0, SIZE * SIZE, ())
     assert luminance(own).sum() > 1.0
+    np.testing.assert_allclose(alone, own, rtol=2e-3, atol=1e-6)
+
+
+def test02b_a_dielectric_lobe_is_carried_whole():
+    """The same on a dark dielectric wall: GlossySamples carry its lobe's
+    exact-Fresnel share, so the lobe reuse evaluates is the pixel's own."""
+    c = RenderContext.build(metal_wall_scene(wall="dielectric"))
+    try:
+        own, gs, img = first_pass(c, 2)
+        alone = reuse_glossy(c, img, gs, 0, SIZE * SIZE, ())
+    finally:
+        c.close()
+    assert luminance(own).sum() > 0.05 and gs.f_exact.max() > 0.5
     np.testing.assert_allclose(alone, own, rtol=2e-3, atol=1e-6)
 
 
