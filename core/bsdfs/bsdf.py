@@ -22,7 +22,7 @@ from .fresnel import dielectric_rise, ior_from_f0, schlick
 from .microfacet import ALPHA_MIN, ggx_d, ggx_g1, ggx_lambda, ggx_sample_visible_normal
 from .glass import glass_eval, glass_sample
 from .glass_albedo import at_view as glass_at_view
-from .microfacet_albedo import albedo_terms, rise_average
+from .microfacet_albedo import albedo_average, albedo_terms, multiple_bounce_fresnel, rise_average
 from .sheen import add_lobe, at_view as sheen_at_view, ltc_sample
 from .velvet import add_velvet
 
@@ -192,6 +192,7 @@ def at_view(params, wo):
         a, b = spread(a), spread(b)
     e1 = np.maximum(a + b, 1e-3)
     lost_ms = (1.0 - e1) / e1
+    e_avg = spread(albedo_average(np.sqrt(pick(params.alpha))))
     lost = lost_ms if params.spec_ss is None else lost_ms * (1.0 - params.spec_ss)
     if layered:
         # The layer's albedo with what multiple scattering keeps, whichever
@@ -200,10 +201,11 @@ def at_view(params, wo):
         # (an IOR and its inverse alike, as Cycles' table); at a normal
         # reflectance near one (an IOR near 0) it leaves the base nothing.
         rest = 1.0 - lf0
-        e_layer = (lf0 * e1 + rest * r) * (1.0 + (lf0 + rest * rise_average(layer_eta)) * lost_ms)
+        f_ms = multiple_bounce_fresnel(lf0 + rest * rise_average(layer_eta), e_avg)
+        e_layer = (lf0 * e1 + rest * r) * (1.0 + f_ms * lost_ms)
         e_layer = np.clip(e_layer, 0.0, 1.0).astype(np.float32)
         params.diffuse = np.maximum(params.diffuse - scale(params.layered, e_layer), 0.0).astype(np.float32)
-    boost = (1.0 + scale(f_avg, lost)).astype(np.float32)
+    boost = (1.0 + scale(multiple_bounce_fresnel(f_avg, e_avg), lost)).astype(np.float32)
     params.f0 = (params.f0 * boost).astype(np.float32)
     params.f90 = (f90 * boost).astype(np.float32)
     if params.f_exact is not None:

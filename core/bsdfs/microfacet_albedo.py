@@ -7,8 +7,10 @@ Two uses, both as Cycles does them with its precomputed tables:
   which grows toward grazing views (a constant 1 - f0 would gain energy there).
 - Multiple scattering: a single-scattering GGX lobe loses the light that
   bounces between microfacets (up to a fifth at roughness 1); Cycles'
-  multiscatter GGX puts it back. Here the lobe is scaled by
-  1 + F_avg (1 - E) / E (the Kulla-Conty energy term with a Fresnel average).
+  multiscatter GGX puts it back. Here, as there, the lobe is scaled by
+  1 + F_ms (1 - E) / E, with F_ms = F_avg E_avg / (1 - F_avg (1 - E_avg))
+  the Fresnel of light that bounced (Kulla and Conty; F_avg the Fresnel's
+  hemispherical average, E_avg the albedo's).
 
 The lobe's Fresnel (fresnel.py) is F = f0 + (f90 - f0 - x) (1 - cos)^5 +
 x s_eta(cos): Schlick's, with a share x rising along the exact dielectric
@@ -96,6 +98,29 @@ def _rise_average_table():
     etas = _eta_axis()
     rise = dielectric_rise(np.broadcast_to(mu, (N_ETA, len(mu))), etas[:, None])
     return (2.0 * (rise * mu).mean(axis=1)).astype(np.float32)
+
+
+@functools.lru_cache(maxsize=1)
+def _albedo_average_table():
+    """2 int E(mu) mu dmu of the lobe with F = 1 over the roughness axis."""
+    a_tab, b_tab, _ = tables()
+    mu = (np.arange(N_COS) + 0.5) / N_COS
+    return (2.0 * np.mean((a_tab + b_tab) * mu[None, :], axis=1)).astype(np.float32)
+
+
+def albedo_average(rough):
+    """(N,) E_avg: the cosine-weighted hemispherical average of the GGX
+    lobe's albedo with F = 1 at roughness (N,)."""
+    y = np.asarray(rough, np.float32) * np.float32(N_ROUGH - 1)
+    return np.interp(y, np.arange(N_ROUGH), _albedo_average_table()).astype(np.float32)
+
+
+def multiple_bounce_fresnel(f_avg, e_avg):
+    """Kulla and Conty's Fresnel of light that bounced between microfacets,
+    F_avg E_avg / (1 - F_avg (1 - E_avg)), with one F_avg cancelled, as
+    Cycles scales its lost energy: f_avg (N, 3) or (N,), e_avg (N,)."""
+    e = e_avg[:, None] if np.ndim(f_avg) == 2 else e_avg
+    return f_avg * e / np.maximum(1.0 - f_avg * (1.0 - e), 1e-6)
 
 
 def rise_average(eta):
