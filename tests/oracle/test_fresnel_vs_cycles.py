@@ -5,8 +5,9 @@ engines. Cycles reflects with the dielectric layer by the exact Fresnel curve
 of its IOR (core/bsdfs/fresnel.py); with Schlick's approximation, whose
 hemispherical mean is 5.8 % lower at IOR 1.45, these spheres rendered
 0.89-0.92 of Cycles. Rough glass spheres, white and tinted, show its
-multiple-scattering compensation (core/bsdfs/glass_albedo.py). Each
-sphere's mean must agree within 2 %, and every sphere must be finite."""
+multiple-scattering compensation (core/bsdfs/glass_albedo.py), and a rough
+gold metal the GGX lobe's (core/bsdfs/microfacet_albedo.py). Each sphere's
+mean must agree within 2 %, and every sphere must be finite."""
 
 import math
 
@@ -33,6 +34,9 @@ SPHERES = {             # name: Principled inputs on a black base
                              "Transmission Weight": 1.0},
     "tinted_glass_rough0.8": {"Base Color": (0.3, 0.6, 0.9, 1), "IOR": 1.5, "Roughness": 0.8,
                               "Transmission Weight": 1.0},
+    # A rough coloured metal: the energy put back takes the Fresnel of
+    # light that bounced (Kulla and Conty's F_ms), as Cycles' (about 5 % bright with F_avg).
+    "gold_rough0.8": {"Base Color": (0.9, 0.6, 0.2, 1), "Metallic": 1.0, "Roughness": 0.8},
 }
 
 
