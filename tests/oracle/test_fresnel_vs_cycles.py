@@ -7,7 +7,8 @@ hemispherical mean is 5.8 % lower at IOR 1.45, these spheres rendered
 0.89-0.92 of Cycles. Rough glass spheres, white and tinted, show its
 multiple-scattering compensation (core/bsdfs/glass_albedo.py), and a rough
 gold metal the GGX lobe's (core/bsdfs/microfacet_albedo.py). Each sphere's
-mean must agree within 2 %, and every sphere must be finite."""
+mean must agree within 2 % (a half-metallic mixture within 4.5 %, an
+approximation), and every sphere must be finite."""
 
 import math
 
@@ -37,7 +38,12 @@ SPHERES = {             # name: Principled inputs on a black base
     # A rough coloured metal: the energy put back takes the Fresnel of
     # light that bounced (Kulla and Conty's F_ms), as Cycles' (about 5 % bright with F_avg).
     "gold_rough0.8": {"Base Color": (0.9, 0.6, 0.2, 1), "Metallic": 1.0, "Roughness": 0.8},
+    # Half metal, half dielectric: one GGX lobe stands for both, and its
+    # compensation is not linear in the mix (Cycles compensates each
+    # closure by its own Fresnel): about 3 % dark (docs/plan.md).
+    "half_metal_rough0.7": {"Base Color": (0.2, 0.5, 0.9, 1), "Metallic": 0.5, "Roughness": 0.7},
 }
+TOLERANCE = {"half_metal_rough0.7": 0.045}
 
 
 def sphere_scene():
@@ -63,6 +69,7 @@ def sphere_scene():
     cam = bpy.data.cameras.new("camera")
     cam.type = "ORTHO"
     cam.ortho_scale = 2.0 * cols
+    cam.sensor_fit = "HORIZONTAL"       # the scale spans the columns, however many rows
     camera = bpy.data.objects.new("camera", cam)
     camera.location = (2.0 * (cols - 1) / 2, -10.0, -2.0 * (rows - 1) / 2)
     camera.rotation_euler = (math.radians(90), 0, 0)
@@ -100,4 +107,5 @@ def test_dielectric_fresnel_matches_cycles(addon):
     ratio = o / c
     for name, a, b, q in zip(SPHERES, o, c, ratio):
         print(f"{name}: ours {a:.4f} cycles {b:.4f} ratio {q:.4f}")
-    assert (np.abs(ratio - 1) < 0.02).all(), dict(zip(SPHERES, ratio.round(4)))
+    limit = np.array([TOLERANCE.get(name, 0.02) for name in SPHERES])
+    assert (np.abs(ratio - 1) < limit).all(), dict(zip(SPHERES, ratio.round(4)))
