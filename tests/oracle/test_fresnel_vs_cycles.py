@@ -42,6 +42,9 @@ SPHERES = {             # name: Principled inputs on a black base
     # compensation is not linear in the mix (Cycles compensates each
     # closure by its own Fresnel): about 3 % dark (docs/plan.md).
     "half_metal_rough0.7": {"Base Color": (0.2, 0.5, 0.9, 1), "Metallic": 0.5, "Roughness": 0.7},
+    # A Glossy BSDF has no Fresnel: its colour weighs a lobe that reflects
+    # all it receives, so all its lost energy is put back.
+    "glossy_node_rough0.8": {"node": "ShaderNodeBsdfGlossy", "Color": (0.8, 0.4, 0.1, 1), "Roughness": 0.8},
 }
 TOLERANCE = {"half_metal_rough0.7": 0.045}
 
@@ -61,8 +64,15 @@ def sphere_scene():
         obj.name = name
         bpy.ops.object.shade_smooth()
         mat = bpy.data.materials.new(name)
-        bsdf = mat.node_tree.nodes["Principled BSDF"]
+        tree = mat.node_tree
+        bsdf = tree.nodes["Principled BSDF"]
         bsdf.inputs["Base Color"].default_value = (0.0, 0.0, 0.0, 1.0)
+        inputs = dict(inputs)
+        kind = inputs.pop("node", None)
+        if kind is not None:        # another BSDF node in the Principled's place
+            tree.nodes.remove(bsdf)
+            bsdf = tree.nodes.new(kind)
+            tree.links.new(bsdf.outputs[0], tree.nodes["Material Output"].inputs["Surface"])
         for key, value in inputs.items():
             bsdf.inputs[key].default_value = value
         obj.data.materials.append(mat)
