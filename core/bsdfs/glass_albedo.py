@@ -19,7 +19,7 @@ sqrt(|eta - 1| / (eta + 1)), in one table for eta > 1 (entering) and one
 for eta < 1 (leaving): each entry the mean over visible-normal samples h of
 F(wo . h) G2 / G1 for the reflection and (1 - F) G2 / G1 for the
 refraction, where each stays on its side. Read trilinearly; built on first
-use (a glass lobe in the scene), about a fifth of a second.
+use (a glass lobe in the scene), in under a second.
 """
 
 import functools
