@@ -36,7 +36,7 @@ SPHERES = {             # name: Principled inputs on a black base
     "tinted_glass_rough0.8": {"Base Color": (0.3, 0.6, 0.9, 1), "IOR": 1.5, "Roughness": 0.8,
                               "Transmission Weight": 1.0},
     # A rough coloured metal: the energy put back takes the Fresnel of
-    # light that bounced (Kulla and Conty's F_ms), as Cycles' (about 5 % bright with F_avg).
+    # light that bounced (Kulla and Conty's F_ms), as Cycles'.
     "gold_rough0.8": {"Base Color": (0.9, 0.6, 0.2, 1), "Metallic": 1.0, "Roughness": 0.8},
     # Half metal, half dielectric: one GGX lobe stands for both, and its
     # compensation is not linear in the mix (Cycles compensates each
