@@ -78,3 +78,18 @@ def ior_from_f0(f0, below_one=False):
     r = np.sqrt(np.clip(np.asarray(f0, np.float64), 0.0, 0.99))
     eta = (1.0 + r) / (1.0 - r)
     return np.where(below_one, 1.0 / eta, eta).astype(np.float32)
+
+
+def ior_axis(n, eta_max=ETA_MAX):
+    """n IORs evenly spread over z = sqrt(|eta - 1| / (eta + 1)) in [0, 1],
+    the axis of Cycles' tables over the IOR (z^4 is the normal reflectance),
+    from 1 to at most eta_max."""
+    x = np.linspace(0.0, 1.0, n) ** 2
+    return np.minimum((1 + x) / np.maximum(1 - x, 1.0 / eta_max), eta_max)
+
+
+def ior_axis_coordinate(eta, n):
+    """(N,) coordinate in [0, n - 1] of IORs eta (N,) on an ior_axis of n
+    points; an IOR and its inverse fall alike."""
+    eta = np.clip(np.asarray(eta, np.float32), 1.0 / ETA_MAX, ETA_MAX)
+    return np.sqrt(np.abs(eta - 1) / (eta + 1)) * np.float32(n - 1)

@@ -27,7 +27,7 @@ import functools
 import numpy as np
 
 from ..util.rows import gather, row_max, scatter
-from .fresnel import fresnel_and_cos_t
+from .fresnel import fresnel_and_cos_t, ior_axis, ior_axis_coordinate
 from .microfacet import ggx_lambda, ggx_sample_visible_normal
 
 N_ROUGH = 16
@@ -38,9 +38,8 @@ ETA_FAR = 1e3         # the IOR at the axis' far end
 
 
 def _etas(entering):
-    """The table's IORs: z = sqrt(|eta - 1| / (eta + 1)) on [0, 1], inverted leaving."""
-    x = np.linspace(0.0, 1.0, N_ETA) ** 2
-    eta = np.minimum((1 + x) / np.maximum(1 - x, 1.0 / ETA_FAR), ETA_FAR)
+    """The table's IORs (fresnel.ior_axis), inverted leaving."""
+    eta = ior_axis(N_ETA, ETA_FAR)
     eta[0] = 1.0 + 1e-4        # index-matched: nothing is lost
     return eta if entering else 1.0 / eta
 
@@ -110,7 +109,7 @@ def glass_albedo(rough, cos, eta, average=False):
     across IOR ratios eta (N,) (the side opposite wo over wo's side); with
     ``average``, also (N,) its cosine-weighted hemispherical average E_avg."""
     eta = np.asarray(eta, np.float32)
-    z = np.sqrt(np.abs(eta - 1) / (eta + 1))
+    z = ior_axis_coordinate(eta, N_ETA) / np.float32(N_ETA - 1)
     entering, leaving = tables()
     e = np.where(eta >= 1, _read(entering, rough, cos, z), _read(leaving, rough, cos, z)).astype(np.float32)
     if not average:

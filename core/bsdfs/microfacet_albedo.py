@@ -27,7 +27,7 @@ import functools
 
 import numpy as np
 
-from .fresnel import ETA_MAX, dielectric_rise
+from .fresnel import dielectric_rise, ior_axis, ior_axis_coordinate
 from .microfacet import ggx_lambda, ggx_sample_visible_normal
 
 N_COS = 32
@@ -37,27 +37,14 @@ N_ETA = 24
 N_BINS = 4096     # cos(wo, h) bins of the rise table
 
 
-def _eta_axis():
-    """The IORs of the rise table's columns: t = sqrt((eta - 1) / (eta + 1)) in [0, 1]."""
-    x = np.linspace(0.0, 1.0, N_ETA) ** 2
-    return np.minimum((1 + x) / np.maximum(1 - x, 1.0 / ETA_MAX), ETA_MAX)
-
-
-def _eta_coordinate(eta):
-    """Column coordinate of IORs (N,) in the rise table, an IOR and its inverse alike."""
-    eta = np.clip(np.asarray(eta, np.float32), 1.0 / ETA_MAX, ETA_MAX)
-    x = np.abs(eta - 1) / (eta + 1)
-    return np.sqrt(x) * (N_ETA - 1)
-
-
 @functools.lru_cache(maxsize=1)
 def tables():
     """(A, B) as (N_ROUGH, N_COS) and R as (N_ROUGH, N_COS, N_ETA) float32
-    over roughness, cos theta_o in [0, 1] and the IOR axis (_eta_axis)."""
+    over roughness, cos theta_o in [0, 1] and the IOR (fresnel.ior_axis)."""
     cos = (np.arange(N_COS, dtype=np.float64) + 0.5) / N_COS
     rough = np.linspace(0.0, 1.0, N_ROUGH)
     alpha = np.maximum(rough ** 2, 1e-3)
-    etas = _eta_axis()
+    etas = ior_axis(N_ETA)
     grid = (np.arange(N_BINS) + 0.5) / N_BINS
     rise_grid = dielectric_rise(np.broadcast_to(grid[:, None], (N_BINS, N_ETA)), etas[None, :]).astype(np.float64)
     # Stratified samples on a 32 x 32 grid, the same for every entry.
@@ -95,7 +82,7 @@ def _rise_average_table():
     """2 int s_eta(mu) mu dmu over the rise table's IOR axis: the exact
     curve's hemispherical (cosine-weighted) average share."""
     mu = (np.arange(4096) + 0.5) / 4096
-    etas = _eta_axis()
+    etas = ior_axis(N_ETA)
     rise = dielectric_rise(np.broadcast_to(mu, (N_ETA, len(mu))), etas[:, None])
     return (2.0 * (rise * mu).mean(axis=1)).astype(np.float32)
 
@@ -125,7 +112,7 @@ def multiple_bounce_fresnel(f_avg, e_avg):
 
 def rise_average(eta):
     """(N,) cosine-weighted hemispherical average of dielectric_rise at IORs eta (N,)."""
-    return np.interp(_eta_coordinate(eta), np.arange(N_ETA), _rise_average_table()).astype(np.float32)
+    return np.interp(ior_axis_coordinate(eta, N_ETA), np.arange(N_ETA), _rise_average_table()).astype(np.float32)
 
 
 def albedo_terms(rough, cos, eta=None):
@@ -158,7 +145,7 @@ def albedo_terms(rough, cos, eta=None):
 
     if eta is None:
         return read(a_tab, taps), read(b_tab, taps)
-    z = _eta_coordinate(eta)
+    z = ior_axis_coordinate(eta, N_ETA)
     z0 = np.minimum(z.astype(np.int64), N_ETA - 2)
     fz = z - z0
     gz = 1 - fz
