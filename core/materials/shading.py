@@ -14,6 +14,7 @@ The graphs are compiled and the lobe table built once per scene object
 import numpy as np
 
 from ..bsdfs import bsdf
+from ..bsdfs.principled import material_lobes
 from ..geometry.interaction import SurfaceHits
 from ..util.rows import gather, scatter
 from .lobe_rows import add_lobes
@@ -31,7 +32,7 @@ class SceneShading:
         m = len(scene.materials)
         shaders = list(scene.shaders or [])
         self.compiled = [None] * m
-        table = bsdf.material_lobes(scene.materials)
+        table = material_lobes(scene.materials)
         one = WorldGeometry(np.array([[0.0, 0.0, 1.0]], np.float32))
         self.emission = np.array(scene.materials.emission, np.float32, copy=True)
         self.transparent_ids = set()

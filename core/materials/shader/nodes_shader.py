@@ -42,7 +42,7 @@ sheen over the other lobes.
 
 import numpy as np
 
-from ...bsdfs.bsdf import layer_ior
+from ...bsdfs.principled import layer_ior
 from .closure import BSDF_LOBES, Closure
 from .evaluate import f32, node
 

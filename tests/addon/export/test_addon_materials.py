@@ -6,7 +6,7 @@ numbers the scene was built with."""
 import numpy as np
 import pytest
 
-from restir_gi.core.bsdfs.bsdf import principled_lobes
+from restir_gi.core.bsdfs.principled import principled_lobes
 from support.export_util import QUAD, add_mesh, export, fresh, grid, material, row, tri_points
 
 

@@ -8,7 +8,7 @@ import pytest
 
 from support.chi2 import ChiSquareTest, integrate, log_spherical_domain, spherical_domain
 from restir_gi.core import Materials
-from restir_gi.core.bsdfs import bsdf
+from restir_gi.core.bsdfs import bsdf, principled
 
 MATERIALS = {
     "lambert": {"base_color": (0.8, 0.6, 0.3), "specular": 0.0, "metallic": 0.0},
@@ -29,7 +29,7 @@ def params(name, n, white=False, wo=None):
     row = dict(MATERIALS[name])
     if white:
         row["base_color"] = (1.0, 1.0, 1.0)
-    p = bsdf.bsdf_params(Materials.from_list([row]), np.zeros(n, np.int32))
+    p = principled.bsdf_params(Materials.from_list([row]), np.zeros(n, np.int32))
     return p if wo is None else bsdf.at_view(p, rep(wo, n))
 
 
@@ -68,7 +68,7 @@ def draw(name, wo, rng, n=N, white=False):
 
 def test01_params_follow_the_principled_subset():
     mats = Materials.from_list([MATERIALS[k] for k in NAMES])
-    p = bsdf.bsdf_params(mats, np.arange(len(NAMES), dtype=np.int32))
+    p = principled.bsdf_params(mats, np.arange(len(NAMES), dtype=np.int32))
     lam, d02, _, m01, _ = range(5)
     assert p.p_spec[lam] == 0 and np.allclose(p.f0[lam], 0) and np.allclose(p.diffuse[lam], [0.8, 0.6, 0.3])
     # Specular 0.5 at IOR 1.5: F0 = ((1.5 - 1) / (1.5 + 1))^2 = 0.04.
@@ -209,7 +209,7 @@ def test09_sample_weights(name, rng):
 def test10_batch_equals_one_at_a_time(rng):
     n = 60
     mats = Materials.from_list([MATERIALS[k] for k in NAMES])
-    p = bsdf.bsdf_params(mats, rng.integers(0, len(NAMES), n).astype(np.int32))
+    p = principled.bsdf_params(mats, rng.integers(0, len(NAMES), n).astype(np.int32))
     wo = rng.normal(size=(n, 3))
     wo[: n // 2, 2] = np.abs(wo[: n // 2, 2])           # most above, some below the normal
     wo = (wo / np.linalg.norm(wo, axis=1, keepdims=True)).astype(np.float32)

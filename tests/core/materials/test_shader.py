@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from restir_gi.core import Camera, Lights, Materials, make_scene
-from restir_gi.core.bsdfs import bsdf
+from restir_gi.core.bsdfs import bsdf, principled
 from restir_gi.core.materials.shading import surface_params, triangle_emission
 from restir_gi.core.materials.shader import CompiledShader, Link, Node, ShaderGraph, WorldGeometry
 from restir_gi.core.materials.shader.nodes_color import blend, hsv_to_rgb, rgb_to_hsv
@@ -161,7 +161,7 @@ def test05_principled_constant_graph_equals_the_material_table():
             # Out of range, as Cycles takes it: the metal's f0 clamped to [0, 1], the diffuse only to >= 0.
             {"base_color": (5.0, -1.0, 0.5), "metallic": 1.0, "roughness": 0.3, "ior": 1.5, "specular": 0.5},
             {"base_color": (2.0, -1.0, 0.5), "metallic": 0.0, "roughness": 0.3, "ior": 1.5, "specular": 0.5}]
-    table = bsdf.material_lobes(Materials.from_list(rows))
+    table = principled.material_lobes(Materials.from_list(rows))
     assert np.allclose(table.f0[3], (1.0, 0.0, 0.5)) and np.allclose(table.diffuse[4], (2.0, 0.0, 0.5))
     for i, r in enumerate(rows):
         node_ = Node("BSDF_PRINCIPLED", {"Base Color": r["base_color"], "Metallic": r["metallic"],
