@@ -204,6 +204,9 @@ class Scene:
     # filling the space outside the objects' media, as a volume dict of
     # core/integrators/media.py (sigma_a, sigma_s, emission, g); None: none.
     world_volume: dict = None
+    # Volume objects' voxel grids as heterogeneous media
+    # (core/integrators/grid_media.py's GridMedium each).
+    volume_grids: list = field(default_factory=list)
     width: int = 64
     height: int = 64
     filter_width: float = 1.5   # pixel filter width in pixels (Blackman-Harris, as Cycles)
@@ -292,6 +295,8 @@ class Scene:
         world = self.environment.digest() if self.environment is not None else b""
         if self.world_volume is not None:
             world += repr(sorted(self.world_volume.items())).encode()
+        for g in self.volume_grids or ():
+            world += g.digest()
         return _digest(arrays, world)
 
 

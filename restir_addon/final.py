@@ -367,7 +367,7 @@ def _render_view(engine, depsgraph, view, report=True, stream=None, preview=Fals
         if core_scene is None or ctx is None:
             engine.report({"ERROR"}, "The scene could not be prepared for rendering")
             return
-        if core_scene.triangle_count == 0:
+        if core_scene.triangle_count == 0 and not core_scene.volume_grids:
             engine.report({"WARNING"}, "The scene has no geometry to render")
         emissive = len(ctx.lights.tri_index) > 0
         lit = len(core_scene.lights) and bool((np.asarray(core_scene.lights.power) > 0).any())

@@ -30,6 +30,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..geometry.accel import Accel
+from .grid_media import CHUNK, merge, prepare
 from ..util.vectors import orthonormal_basis
 
 MAX_CROSSINGS = 16
@@ -59,7 +60,8 @@ def coefficients(volume):
 class Media:
     """The media of a scene and their boundaries (see the module notes)."""
 
-    def __init__(self, scene, volumes, eps, world=None):
+    def __init__(self, scene, volumes, eps, world=None, grids=None):
+        self.grids = prepare(grids)
         self.world = coefficients(world) if world is not None else None
         if self.world is not None and not np.abs(self.world).max() > 0:
             self.world = None
@@ -80,7 +82,7 @@ class Media:
 
     @property
     def empty(self):
-        return len(self.tri) == 0 and self.world is None
+        return len(self.tri) == 0 and self.world is None and not self.grids
 
     def close(self):
         if self.accel is not None:
@@ -144,7 +146,8 @@ class Media:
         vals[..., :9] = np.maximum(vals[..., :9], 0.0)     # (the last column, sigma_s x g, has a sign)
         end = end_all[rows]
         bounds = np.concatenate([np.zeros((m, 1)), np.minimum(t, end[:, None]), end[:, None]], axis=1)
-        return Intervals(bounds, vals.astype(np.float64), rows, end_all)
+        iv = Intervals(bounds, vals.astype(np.float64), rows, end_all)
+        return Segments(iv, self.grids, o, d, end_all) if self.grids else iv
 
 
 @dataclass
@@ -242,6 +245,72 @@ class Intervals:
         return scattered, t.astype(np.float32), weight, ss.astype(np.float32), np.clip(g, -0.999, 0.999)
 
 
+class Segments:
+    """Intervals of the homogeneous media joined with the marches of the
+    voxel grids (core/integrators/grid_media.py) along the rays that cross a
+    grid's box, in chunks of CHUNK rays: the same three estimates as
+    Intervals."""
+
+    def __init__(self, hom, grids, o, d, end):
+        self.hom, self.grids, self.end = hom, grids, np.asarray(end, np.float64)
+        self.o, self.d = np.asarray(o, np.float64), np.asarray(d, np.float64)
+        self.spans = [g.span(self.o, self.d, self.end) for g in grids]
+        cross = np.zeros(len(self.end), bool)
+        for t0, t1 in self.spans:
+            cross |= t1 > t0
+        self.rows = np.nonzero(cross)[0]
+
+    def _hom_rows(self, rows):
+        h = self.hom
+        if h.rows is None:
+            pos = rows
+        else:
+            lookup = np.full(len(self.end), -1, np.int64)
+            lookup[h.rows] = np.arange(len(h.rows))
+            pos = lookup[rows]
+        have = pos >= 0
+        width = h.bounds.shape[1]
+        bounds = np.repeat(self.end[rows, None], width, axis=1)
+        bounds[:, 0] = 0.0
+        vals = np.zeros((len(rows), width - 1, C))
+        bounds[have] = h.bounds[pos[have]]
+        vals[have] = h.vals[pos[have]]
+        return bounds, vals
+
+    def _chunks(self):
+        for start in range(0, len(self.rows), CHUNK):
+            r = self.rows[start:start + CHUNK]
+            parts = []
+            for g, (t0, t1) in zip(self.grids, self.spans):
+                a, b = t0[r], t1[r]
+                cross = b > a
+                parts.append(g.steps(self.o[r], self.d[r], np.where(cross, a, 0.0), np.where(cross, b, 0.0)))
+            yield r, Intervals(*merge(*self._hom_rows(r), parts))
+
+    def transmittance(self):
+        out = self.hom.transmittance()
+        for r, iv in self._chunks():
+            out[r] = iv.transmittance()
+        return out
+
+    def emission(self):
+        out = self.hom.emission()
+        if not any(np.abs(g.constant[6:9]).max() > 0 for g in self.grids) and \
+                not np.abs(self.hom.vals[..., 6:9]).max(initial=0.0) > 0:
+            return out          # nothing emits: the grids change nothing
+        for r, iv in self._chunks():
+            out[r] = iv.emission()
+        return out
+
+    def sample(self, u_channel, u_distance):
+        u_channel, u_distance = np.asarray(u_channel), np.asarray(u_distance)
+        out = [np.array(a) for a in self.hom.sample(u_channel, u_distance)]
+        for r, iv in self._chunks():
+            for a, b in zip(out, iv.sample(u_channel[r], u_distance[r])):
+                a[r] = b
+        return tuple(out)
+
+
 def hg_pdf(cos_theta, g):
     """Henyey-Greenstein phase function of the angle between the ray's
     direction and the new one (1 / sr)."""
@@ -278,23 +347,26 @@ def media_of(scene, eps):
     of a frame, on either worker thread, share one), None without media."""
     volumes = graph_media(getattr(scene, "shaders", None))
     world = getattr(scene, "world_volume", None)
-    if not volumes and world is None:
+    grids = list(getattr(scene, "volume_grids", None) or ())
+    if not volumes and world is None and not grids:
         return None
     if volumes and getattr(scene, "face_normals", None) is None:
         volumes = {}
-        if world is None:
+        if world is None and not grids:
             return None
     # (versions: the geometry's change counter, which moves when an object
     # moves in place in the same arrays: the viewport, animation frames)
     key = (id(scene.vertices), id(scene.triangles), id(scene.material_ids), len(scene.triangles),
            getattr(scene, "versions", None),
            tuple(sorted((i, tuple(coefficients(v))) for i, v in volumes.items())),
-           None if world is None else tuple(coefficients(world)))
+           None if world is None else tuple(coefficients(world)),
+           tuple((id(g.density), g.density.shape, g.to_index.tobytes(), g.scaled.tobytes(), g.constant.tobytes())
+                 for g in grids))
     with _LOCK:
         cached = _CACHE.get(id(scene))
         if cached is not None and cached[0] == key:
             return cached[1]
-        media = Media(scene, volumes, eps, world)
+        media = Media(scene, volumes, eps, world, grids)
         if media.empty:
             media.close()
             media = None

@@ -174,7 +174,7 @@ def camera_pass(ctx, width, height, seed, frame, sample, max_bounces, pixel_filt
     media = media_of(scene, ctx.eps)
     if media is not None:
         color = camera_radiance(ctx, media, o, d, tmax, hits, seeds, max_bounces)
-        return _with_aovs(ctx, color, o, d, hits, n, tmax)
+        return _with_aovs(ctx, color, o, d, hits, n, tmax, media)
     color = ctx.lights.emitted_along(o, d, np.minimum(hits.t, tmax))
     miss = np.nonzero(~hits.hit & (tmax > 0))[0]     # tmax 0: outside a fisheye's lens
     if len(miss) and ctx.lights.environment is not None and not scene.film_transparent:
@@ -210,9 +210,11 @@ def _finished(scene, color, depth, normal, albedo, n, idx, surf):
     return PassResult(color, depth, normal, albedo, alpha)
 
 
-def _with_aovs(ctx, color, o, d, hits, n, tmax):
+def _with_aovs(ctx, color, o, d, hits, n, tmax, media):
     """PassResult of colours found another way (through media) with the
-    passes of the camera rays' first surfaces."""
+    passes of the camera rays' first surfaces. With a transparent film, a
+    camera ray that meets no surface is as opaque as the media it crosses
+    (alpha one minus their mean transmittance, as Cycles)."""
     scene = ctx.scene
     depth = np.full(n, 1e10, np.float32)
     normal = np.zeros((n, 3), np.float32)
@@ -221,7 +223,12 @@ def _with_aovs(ctx, color, o, d, hits, n, tmax):
     if len(idx):
         shading = ShadingFrame.at(scene, surf, camera_ray=True)
         _first_surface_passes(scene, surf, idx, shading, depth, normal, albedo)
-    return _finished(scene, color, depth, normal, albedo, n, idx, surf)
+    result = _finished(scene, color, depth, normal, albedo, n, idx, surf)
+    miss = np.nonzero(~hits.hit & (tmax > 0))[0]
+    if scene.film_transparent and len(miss) and result.alpha is not None:
+        tr = media.along(gather(o, miss), gather(d, miss), np.full(len(miss), np.inf)).transmittance()
+        result.alpha[miss] = np.maximum(result.alpha[miss], 1.0 - tr.mean(axis=1))
+    return result
 
 
 def mean_luminance(color):

@@ -13,6 +13,7 @@ from .mesh import (GEOMETRY_TYPES, SWAP, hair_warning, in_edit_mode, mirrors, pl
                    read_corner_data, read_mesh, unrendered)
 from .strands import STRAND_TYPES, has_particle_hair, pad_corners, read_strands, with_particle_hair
 from .object_attributes import attribute_tables, object_attributes, split_needs
+from .volume_objects import GridFiles, volume_grids
 from .world import evaluated_world, export_world
 
 
@@ -158,6 +159,7 @@ def export_scene(depsgraph, width=None, height=None):
     verts, tris, normals, uvs, mids, oids, light_rows, corners = [], [], [], [], [], [], [], []
     offset = 0
     object_index = {}           # instance key -> object id
+    grids, grid_files = [], GridFiles()
     object_matrices, object_colors, visibility, pass_index, attributes, holdouts = [], [], [], [], [], []
     for inst in depsgraph.object_instances:
         obj = inst.object
@@ -166,6 +168,9 @@ def export_scene(depsgraph, width=None, height=None):
                 light_rows.append(light_row(obj, inst.matrix_world, warn))
             else:
                 warn(f"Light '{obj.name}' of type {obj.data.type} is not supported")
+            continue
+        if obj.type == "VOLUME":
+            grids += volume_grids(obj, inst.matrix_world, grid_files, warn)
             continue
         if obj.type not in GEOMETRY_TYPES:
             if unrendered(obj):
@@ -224,6 +229,7 @@ def export_scene(depsgraph, width=None, height=None):
     )
     scene.environment = world
     scene.world_volume = world_volume
+    scene.volume_grids = grids
     scene.film_transparent = film_transparent(bscene)
     scene.shaders = materials.graphs
     scene.images = materials.images.images

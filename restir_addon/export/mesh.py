@@ -14,7 +14,8 @@ import numpy as np
 # Point clouds and hair curves are tessellated (export/strands.py).
 GEOMETRY_TYPES = {"MESH", "CURVES", "POINTCLOUD"}
 # Object types with geometry that this engine does not render: a warning each.
-UNRENDERED_TYPES = {"VOLUME": "volume objects are not rendered"}
+# (Volume objects render as media: export/volume_objects.py.)
+UNRENDERED_TYPES = {}
 
 
 def in_edit_mode(me):

@@ -13,7 +13,10 @@ volume closures define them.
 
 Inputs are read as the constants they hold: an input fed by a link
 (a texture, an attribute) gives its own default value instead, with a
-warning (heterogeneous media are not rendered).
+warning (heterogeneous media are not rendered). A volume object's grids
+are the exception (export/volume_objects.py): there a Principled Volume's
+Density Attribute, or an Attribute node feeding a Density, names the grid
+that scales the density (read with ``grids``).
 """
 
 import numpy as np
@@ -38,14 +41,19 @@ def _source(socket):
 
 
 class _Reader:
-    def __init__(self, warn):
+    def __init__(self, warn, grids=None):
         self.warn = warn
+        self.grids = grids      # a list: grid names that scale densities are put in it
 
     def value(self, node, name, default):
         socket = node.inputs.get(name)
         if socket is None:
             return np.asarray(default, np.float64)
         if socket.is_linked:
+            src = _source(socket)
+            if self.grids is not None and name == "Density" and src is not None and src.node.type == "ATTRIBUTE":
+                self.grids.append(src.node.attribute_name)
+                return np.asarray(1.0, np.float64)
             self.warn(f"volume input '{name}' of node '{node.name}' is linked (a texture or attribute: "
                       "heterogeneous media are not rendered); its own value is used")
         value = getattr(socket, "default_value", default)
@@ -88,6 +96,13 @@ class _Reader:
             return ZERO, ss, ZERO, float(ss.mean() * g)
         if kind == "PRINCIPLED_VOLUME":
             density = max(self.number(node, "Density", 1.0), 0.0)
+            attribute = node.inputs.get("Density Attribute")
+            if self.grids is not None and attribute is not None and getattr(attribute, "default_value", ""):
+                self.grids.append(str(attribute.default_value))
+            colour = node.inputs.get("Color Attribute")
+            if self.grids is not None and colour is not None and getattr(colour, "default_value", ""):
+                self.warn(f"node '{node.name}': the colour grid '{colour.default_value}' is not rendered "
+                          "(Color is used)")
             color = np.clip(self.color(node, "Color", (0.5, 0.5, 0.5)), 0, None)
             absorb = np.clip(self.color(node, "Absorption Color", (0, 0, 0)), 0, None)
             g = float(np.clip(self.number(node, "Anisotropy", 0.0), -0.999, 0.999))
@@ -112,12 +127,29 @@ class _Reader:
         return ZERO, ZERO, ZERO, 0.0
 
 
+def _medium(sa, ss, em, gs):
+    g = gs / ss.mean() if ss.mean() > 0 else 0.0
+    return {"sigma_a": tuple(float(x) for x in sa), "sigma_s": tuple(float(x) for x in ss),
+            "emission": tuple(float(x) for x in em), "g": float(np.clip(g, -0.999, 0.999))}
+
+
 def read_volume(socket, warn):
     """The medium dict of a Volume socket (core/integrators/media.py), or None if it
     gives none."""
     sa, ss, em, gs = _Reader(warn).closure(socket)
     if not (np.max(sa) > 0 or np.max(ss) > 0 or np.max(em) > 0):
         return None
-    g = gs / ss.mean() if ss.mean() > 0 else 0.0
-    return {"sigma_a": tuple(float(x) for x in sa), "sigma_s": tuple(float(x) for x in ss),
-            "emission": tuple(float(x) for x in em), "g": float(np.clip(g, -0.999, 0.999))}
+    return _medium(sa, ss, em, gs)
+
+
+def read_grid_volume(socket, warn):
+    """A volume object's shader: (medium dict of absorption and scattering per
+    unit of the grid, medium dict of emission, names of the grids that scale
+    the density). Without a grid name the whole medium is constant inside
+    the volume (the second dict holds it all), as Cycles fills a volume
+    object's bounds when no grid drives the density."""
+    grids = []
+    sa, ss, em, gs = _Reader(warn, grids).closure(socket)
+    if grids:
+        return _medium(sa, ss, ZERO, gs), _medium(ZERO, ZERO, em, 0.0), grids
+    return _medium(ZERO, ZERO, ZERO, 0.0), _medium(sa, ss, em, gs), grids

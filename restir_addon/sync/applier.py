@@ -34,6 +34,8 @@ class SceneApplier:
             self._scene_lights = p.lights
         if p.world is not None:
             self._environment, self._world_volume = p.world
+        if p.volumes is not None:
+            self._volume_grids = p.volumes
         if p.filter_width is not None:
             self._filter_width = p.filter_width
         if p.film_transparent is not None:
@@ -48,7 +50,7 @@ class SceneApplier:
         # (Scene.versions): geometry, and the lights, materials and world
         # (Scene.lighting_key combines the two, Scene.shading_key is the second).
         self._geometry_version += geometry
-        self._lighting_version += any(x is not None for x in (p.materials, p.lights, p.world))
+        self._lighting_version += any(x is not None for x in (p.materials, p.lights, p.world, p.volumes))
         self._applied_generation = p.generation
         self._build_context(lights_changed)
         self._scene_changed()
@@ -100,7 +102,7 @@ class SceneApplier:
         scene = Scene(vertices=a["vertices"], triangles=a["triangles"], normals=a["normals"],
                       uvs=a["uvs"], material_ids=mids, object_ids=a["object_ids"], materials=mats,
                       lights=self._scene_lights, camera=self._camera, environment=self._environment,
-                      world_volume=self._world_volume,
+                      world_volume=self._world_volume, volume_grids=list(self._volume_grids),
                       shaders=self._scene_shaders, images=self._scene_images,
                       corner_data=a.get("corner_data") or {},
                       width=w, height=h, filter_width=self._filter_width,

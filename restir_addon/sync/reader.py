@@ -17,6 +17,7 @@ from ..export.camera import export_camera, render_size
 from ..export.lights import is_supported, light_row, row_signature
 from ..export.materials import MaterialTable
 from ..export.mesh import GEOMETRY_TYPES, unrendered
+from ..export.volume_objects import GridFiles, volume_grids
 from ..export.object_attributes import object_attributes, split_needs
 from ..export.world import evaluated_world, export_world
 from ..memory import check_geometry
@@ -91,6 +92,7 @@ class SceneReader:
         self._materials = MaterialTable(self.warnings)
         self._materials.images.frame = scene.frame_current
         self._light_rows = None
+        self._grid_signature = None
         self._walk(depsgraph, None, None, compare=self._stable_keys)
         world = self._read_world(depsgraph, force=True)
         self._filter_width_read = float(scene.render.filter_size)
@@ -120,6 +122,9 @@ class SceneReader:
         was read (one foreach_get and a comparison per mesh, no triangles)."""
         self.work.object_walks += 1
         instances, light_rows, fresh = {}, [], set()
+        grids = []
+        if getattr(self, "_grid_files", None) is None:
+            self._grid_files = GridFiles()
         stable_owner = {}               # compare: stable mesh key -> evaluated data pointer
         animated = set()
         used_meshes = set()
@@ -131,6 +136,10 @@ class SceneReader:
                     light_rows.append(light_row(obj, inst.matrix_world, self.warnings))
                 else:
                     self.warnings(f"Light '{obj.name}' of type {obj.data.type} is not supported")
+                continue
+            if obj.type == "VOLUME":
+                with context("object", f"'{obj.original.name}'"):
+                    grids += volume_grids(obj, inst.matrix_world, self._grid_files, self.warnings)
                 continue
             if obj.type not in GEOMETRY_TYPES:
                 if unrendered(obj):
@@ -208,6 +217,11 @@ class SceneReader:
                 self.work.light_updates += 1
             self._light_rows = signature
             changes["lights"] = Lights.from_list(light_rows)
+        # Grids: the arrays are GridFiles' own while their files are unchanged.
+        signature = [(id(g.density), g.to_index.tobytes(), g.scaled.tobytes(), g.constant.tobytes()) for g in grids]
+        if signature != getattr(self, "_grid_signature", None):
+            self._grid_signature = signature
+            changes["volumes"] = grids
         if changes:
             self._queue(**changes)
 

@@ -65,6 +65,7 @@ class SceneSync(SceneReader, SceneApplier):
         self._scene_lights = Lights.empty()
         self._environment = None
         self._world_volume = None
+        self._volume_grids = []
         self._camera = None
         self._filter_width = 1.5
         self._film_transparent = False

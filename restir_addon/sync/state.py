@@ -62,6 +62,7 @@ class Pending:
     materials: tuple = None          # (Materials table, shader graphs, images)
     lights: Lights = None
     world: tuple = None              # (Environment or None,)
+    volumes: list = None             # volume objects' GridMedium list
     camera: Camera = None
     size: tuple = None              # display size
     filter_width: float = None
@@ -71,7 +72,7 @@ class Pending:
 
     def empty(self):
         return (self.instances is None and self.materials is None and self.lights is None
-                and self.world is None and self.camera is None and self.size is None
+                and self.world is None and self.volumes is None and self.camera is None and self.size is None
                 and self.filter_width is None and self.film_transparent is None
                 and not self.settings)
 

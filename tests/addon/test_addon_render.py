@@ -181,8 +181,8 @@ def test_unsupported_node_reported(addon, reports, tmp_path):
 
 
 def test_what_is_not_rendered_is_reported(addon, reports, tmp_path):
-    """Volume objects, displacement and shadow catchers each say they are not
-    rendered; the render goes on (an empty point cloud, hair curves with all
+    """A volume object without a file, displacement and shadow catchers each
+    say they are not rendered; the render goes on (an empty point cloud, hair curves with all
     points at one place, particle hair, a plane with a volume material and
     motion blur, which Path Tracing renders whole, are there too: they
     render without a warning). (Holdout objects and collections are
@@ -207,7 +207,7 @@ def test_what_is_not_rendered_is_reported(addon, reports, tmp_path):
     scene.render.use_motion_blur = True
     render_exr(scene, tmp_path / "what.exr")
     warnings = reports.of("WARNING")
-    for text in ("'Smoke': volume objects",
+    for text in ("'Smoke': no volume file",
                  "'Fog': displacement", "'Catcher': shadow catcher"):
         assert any(text in w for w in warnings), (text, reports.log)
     assert not any("Motion blur" in w for w in warnings), reports.log

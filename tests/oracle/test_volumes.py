@@ -181,7 +181,7 @@ def test_volume_bad_input(addon, reports, tmp_path):
         assert np.isfinite(img).all() and img.mean() > 0
         warnings = reports.of("WARNING")
         assert reports.of("ERROR") == []
-        assert any("'Smoke': volume objects" in w for w in warnings), reports.log
+        assert any("'Smoke': no volume file" in w for w in warnings), reports.log
         assert any("heterogeneous" in w and "Density" in w for w in warnings), reports.log
         if mode != "PATH":
             assert any("by Path Tracing" in w for w in warnings), reports.log

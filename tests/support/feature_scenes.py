@@ -120,22 +120,47 @@ def hair(scene):
     hair_object(centre=(0.0, 0.0, 0.0), scale=0.6, radius=(0.04, 0.01))
 
 
+def _principled_volume(name, **inputs):
+    """A material whose only output is a Principled Volume of these inputs."""
+    import bpy
+    mat = bpy.data.materials.new(name)
+    tree = mat.node_tree
+    tree.nodes.remove(tree.nodes["Principled BSDF"])
+    node = tree.nodes.new("ShaderNodeVolumePrincipled")
+    for key, value in inputs.items():
+        node.inputs[key].default_value = value
+    tree.links.new(node.outputs[0], tree.nodes["Material Output"].inputs["Volume"])
+    return mat
+
+
 def volume(scene):
     """A box of Principled Volume (density 2, warm colour, anisotropy 0.3)
     in place of the tall box; Cycles' Light Paths > Volume bounces 2."""
     import bpy
     tall = bpy.data.objects["TallBox"]
-    mat = bpy.data.materials.new("Fog")
-    tree = mat.node_tree
-    tree.nodes.remove(tree.nodes["Principled BSDF"])
-    node = tree.nodes.new("ShaderNodeVolumePrincipled")
-    node.inputs["Density"].default_value = 2.0
-    node.inputs["Color"].default_value = (0.9, 0.7, 0.5, 1.0)
-    node.inputs["Anisotropy"].default_value = 0.3
-    tree.links.new(node.outputs[0], tree.nodes["Material Output"].inputs["Volume"])
+    mat = _principled_volume("Fog", Density=2.0, Color=(0.9, 0.7, 0.5, 1.0), Anisotropy=0.3)
     tall.data.materials.clear()
     tall.data.materials.append(mat)
     tall.location.z += 0.01         # off the floor: coplanar faces flicker between the two
+    scene.cycles.volume_bounces = 2
+
+
+def volume_object(scene):
+    """A lumpy ball of smoke from a .vdb file (a volume object, Principled
+    Volume of density 1.5) in place of the tall box; Volume bounces 2."""
+    import os
+    import tempfile
+    import bpy
+    from .vdb_util import lumpy_ball, write_vdb
+    path = write_vdb(os.path.join(tempfile.gettempdir(), "restir_gi_contact_ball.vdb"), {"density": lumpy_ball()},
+                     voxel=0.6 / 40)
+    bpy.data.objects.remove(bpy.data.objects["TallBox"])
+    vol = bpy.data.volumes.new("Smoke")
+    vol.filepath = path
+    ob = bpy.data.objects.new("Smoke", vol)
+    ob.location = (-0.45, -0.1, 0.02)
+    scene.collection.objects.link(ob)
+    vol.materials.append(_principled_volume("Smoke", Density=1.5, Color=(0.9, 0.8, 0.7, 1.0)))
     scene.cycles.volume_bounces = 2
 
 
@@ -169,5 +194,6 @@ def motion_blur(scene):
 
 
 FEATURES = {"panorama_equirectangular": panorama_equirectangular, "panorama_fisheye": panorama_fisheye,
-            "point_cloud": point_cloud, "hair": hair, "volume": volume, "world_volume": world_volume,
+            "point_cloud": point_cloud, "hair": hair, "volume": volume, "volume_object": volume_object,
+            "world_volume": world_volume,
             "motion_blur": motion_blur}

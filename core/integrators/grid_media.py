@@ -1,0 +1,182 @@
+"""Heterogeneous media from voxel grids: Cycles' volume objects, an OpenVDB
+density grid under the object's volume shader.
+
+A GridMedium is plain data: the grid's voxel values as a dense array (voxel
+(i, j, k) sits at index point (i, j, k), as in OpenVDB), the affine map from
+world space to index space, a coefficient row (core/integrators/media.py's
+layout) per unit of density and a row that holds everywhere inside the grid's
+box whatever the density (a Principled Volume's emission, which Cycles does
+not scale by the density). Between voxel centres the density is trilinear, as
+Cycles samples grids, and it falls to zero one voxel past the grid's box.
+The box is the voxels' cells grown by half a voxel each side, as Cycles'
+mesh around a volume's voxels (matched on an emitting grid: without the
+margin 3.4 % dark, with a whole voxel 2.9 % bright).
+
+Along a ray a grid is marched as Cycles marched volumes before its null
+scattering: the span of the ray inside the grid's box is cut into steps of
+about one voxel (at most MAX_STEPS), each step holds the density at its
+midpoint, and these steps join the homogeneous media's piecewise-constant
+intervals (media.Intervals). Transmittance, emission and free-flight
+distances then come from the same closed forms, so a grid adds no noise of
+its own; the midpoint rule's error is second order in the step. Rays are
+marched in chunks of CHUNK to bound the memory of the merged intervals.
+"""
+
+from dataclasses import dataclass, field
+import hashlib
+
+import numpy as np
+
+MAX_STEPS = 128
+CHUNK = 2048
+
+
+@dataclass
+class GridMedium:
+    density: np.ndarray         # (nx, ny, nz) float32 voxel values
+    to_index: np.ndarray        # (4, 4) world space -> index space of density
+    scaled: np.ndarray          # (C,) coefficients per unit of density
+    constant: np.ndarray        # (C,) coefficients inside the grid's box (emission)
+    name: str = ""
+    _digest: bytes = field(default=None, repr=False, compare=False)
+
+    def digest(self):
+        """A change detector of the grid's data (computed once: grids are
+        not changed in place)."""
+        if self._digest is not None:
+            return self._digest
+        h = hashlib.sha1()
+        for a in (self.density, self.to_index, self.scaled, self.constant):
+            a = np.ascontiguousarray(a)
+            h.update(repr((a.dtype.str, a.shape)).encode())
+            h.update(a.tobytes())
+        self._digest = h.digest()
+        return self._digest
+
+
+class PreparedGrid:
+    """A GridMedium made ready for marching: the density padded with a layer
+    of zeros (so trilinear lookups fall to zero past the box), the map to the
+    padded array's index space, the box and the world length of a voxel."""
+
+    def __init__(self, grid):
+        dens = np.nan_to_num(np.asarray(grid.density, np.float32), nan=0.0, posinf=0.0, neginf=0.0)
+        dens = np.maximum(dens, 0.0)
+        if dens.ndim != 3 or dens.size == 0:
+            dens = np.zeros((1, 1, 1), np.float32)
+        self.shape = np.asarray(dens.shape)
+        self.padded = np.pad(dens, 1)
+        m = np.asarray(grid.to_index, np.float64).reshape(4, 4).copy()
+        if not np.isfinite(m).all():
+            m = np.zeros((4, 4))
+        m[:3, 3] += 1.0                                 # index space of the padded array
+        self.m = m
+        # The box marched: the voxels' cells grown by half a voxel each side
+        # ([-1, n] in the grid's own index space), where Cycles' volume mesh
+        # encloses the grid (emission fills it).
+        self.lo, self.hi = 0.0, self.shape + 1.0
+        row = np.nan_to_num(np.asarray(grid.scaled, np.float32))
+        self.scaled = row
+        self.constant = np.nan_to_num(np.asarray(grid.constant, np.float32))
+        with np.errstate(divide="ignore", invalid="ignore"):
+            to_world = np.linalg.pinv(m[:3, :3])
+        voxel = np.linalg.norm(to_world, axis=0)       # world length of one index step per axis
+        self.voxel = float(voxel.min()) if np.isfinite(voxel).all() and voxel.min() > 0 else 0.0
+        scatters = dens.max(initial=0.0) > 0 and np.abs(row).max() > 0
+        self.empty = self.voxel <= 0 or not (scatters or np.abs(self.constant).max() > 0)
+
+    def to_index_space(self, o, d):
+        o = np.asarray(o, np.float64)
+        d = np.asarray(d, np.float64)
+        return o @ self.m[:3, :3].T + self.m[:3, 3], d @ self.m[:3, :3].T
+
+    def span(self, o, d, t_end):
+        """(t0, t1) of the rays o + t d, 0 <= t <= t_end, inside the box; t1 <= t0: none."""
+        oi, di = self.to_index_space(o, d)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            inv = 1.0 / di
+            a = (self.lo - oi) * inv
+            b = (self.hi - oi) * inv
+        lo = np.where(np.isnan(a), -np.inf, np.minimum(a, b))
+        hi = np.where(np.isnan(b), np.inf, np.maximum(a, b))
+        # Axes the ray runs parallel to: inside the slab or never.
+        par = di == 0
+        inside = (oi >= self.lo) & (oi <= self.hi)
+        lo = np.where(par, np.where(inside, -np.inf, np.inf), lo)
+        hi = np.where(par, np.where(inside, np.inf, -np.inf), hi)
+        t0 = np.maximum(lo.max(axis=1), 0.0)
+        t1 = np.minimum(hi.min(axis=1), np.asarray(t_end, np.float64))
+        return t0, t1
+
+    def density(self, p):
+        """Trilinear density at padded index points p (..., 3); zero outside."""
+        shape = p.shape[:-1]
+        p = p.reshape(-1, 3)
+        n = self.padded.shape
+        base = np.floor(p)
+        f = p - base
+        i = base.astype(np.int64)
+        ok = ((i >= 0) & (i < np.asarray(n) - 1)).all(axis=1)
+        i = np.where(ok[:, None], i, 0)
+        out = np.zeros(len(p), np.float64)
+        flat = self.padded.reshape(-1)
+        sy, sz = n[1] * n[2], n[2]
+        idx = i[:, 0] * sy + i[:, 1] * sz + i[:, 2]
+        for dx in (0, 1):
+            wx = f[:, 0] if dx else 1.0 - f[:, 0]
+            for dy in (0, 1):
+                wy = f[:, 1] if dy else 1.0 - f[:, 1]
+                for dz in (0, 1):
+                    wz = f[:, 2] if dz else 1.0 - f[:, 2]
+                    out += wx * wy * wz * flat[idx + dx * sy + dy * sz + dz]
+        return np.where(ok, out, 0.0).reshape(shape)
+
+    def steps(self, o, d, t0, t1):
+        """The march over [t0, t1] of each ray: bounds (M, S + 1) and the
+        coefficient rows of the steps (M, S, C); rays of fewer steps end in
+        steps of zero length."""
+        length = np.maximum(t1 - t0, 0.0)
+        count = np.clip(np.ceil(length / self.voxel), 1, MAX_STEPS).astype(np.int64)
+        s = int(count.max(initial=1))
+        delta = length / count
+        j = np.arange(s + 1)
+        bounds = t0[:, None] + np.minimum(j[None, :], count[:, None]) * delta[:, None]
+        mid = 0.5 * (bounds[:, :-1] + bounds[:, 1:])
+        oi, di = self.to_index_space(o, d)
+        p = oi[:, None, :] + di[:, None, :] * mid[..., None]
+        dens = self.density(p)
+        vals = dens[..., None] * self.scaled + self.constant
+        vals = np.where((j[None, :-1] < count[:, None])[..., None], vals, 0.0)
+        return bounds, vals
+
+
+def prepare(grids):
+    out = [PreparedGrid(g) for g in grids or ()]
+    return [g for g in out if not g.empty]
+
+
+def merge(hom_bounds, hom_vals, parts):
+    """Piecewise-constant coefficients along rays: the homogeneous media's
+    intervals (bounds (M, K + 2), values (M, K + 1, C)) plus the grids'
+    marches (a list of (bounds (M, S + 1), values (M, S, C)); a grid's
+    bounds are evenly spaced, or equal past its last step). Returns the
+    merged bounds and values."""
+    m = len(hom_bounds)
+    all_bounds = np.sort(np.concatenate([hom_bounds] + [b for b, _ in parts], axis=1), axis=1)
+    with np.errstate(invalid="ignore"):
+        mid = 0.5 * (all_bounds[:, :-1] + all_bounds[:, 1:])
+    mid = np.where(np.isnan(mid), all_bounds[:, :-1], mid)
+    rows = np.arange(m)[:, None]
+    k = hom_vals.shape[1]
+    ih = np.clip((hom_bounds[:, None, :] <= mid[..., None]).sum(axis=-1) - 1, 0, k - 1)
+    vals = hom_vals[rows, ih].astype(np.float64)
+    for b, v in parts:
+        s = v.shape[1]
+        start, end = b[:, :1], b[:, -1:]
+        with np.errstate(invalid="ignore", divide="ignore"):
+            delta = (b[:, 1:2] - b[:, :1])
+            j = np.floor((mid - start) / np.where(delta > 0, delta, 1.0))
+        ok = (mid >= start) & (mid < end) & (delta > 0) & np.isfinite(j)
+        j = np.clip(np.where(ok, j, 0), 0, s - 1).astype(np.int64)
+        vals += np.where(ok[..., None], v[rows, j], 0.0)
+    return all_bounds, vals

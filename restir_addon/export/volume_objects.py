@@ -1,0 +1,185 @@
+"""Volume objects (OpenVDB grids) as heterogeneous media
+(core/integrators/grid_media.py).
+
+A volume object's grids are read from its file through the ``openvdb``
+module that Blender's builds ship in their Python (Blender's own Python API
+names the grids and their transforms but gives no voxel values). The
+object's material's Volume output gives the coefficients: a Principled
+Volume's Density Attribute (``density`` by default), or an Attribute node
+feeding a Density, names the grid that scales them; emission fills the
+grid's box, as Cycles' Principled Volume does not scale it by the density.
+A volume object without a material renders with Cycles' default volume
+shader, a Principled Volume of its default values.
+
+Not read, each with a warning: grids made or changed by modifiers or
+Geometry Nodes (no file holds them), grids that are not scalar, a Blender
+without the ``openvdb`` module. A grid of more than MAX_VOXELS is averaged
+down in blocks.
+"""
+
+import glob
+import importlib
+import os
+import sys
+
+import numpy as np
+
+import bpy
+
+from ...core.integrators.grid_media import GridMedium
+from ...core.integrators.media import coefficients
+from .node_graph import _output_node
+from .node_values import uses_nodes
+from .volumes import read_grid_volume
+
+MAX_VOXELS = 1 << 25
+NONE = {"sigma_a": (0.0,) * 3, "sigma_s": (0.0,) * 3, "emission": (0.0,) * 3, "g": 0.0}
+# Cycles' default volume shader: a Principled Volume of its defaults.
+DEFAULT = (dict(NONE, sigma_a=(0.5,) * 3, sigma_s=(0.5,) * 3), NONE, ["density"])
+
+
+def openvdb_module():
+    """Blender's ``openvdb`` module, or None. Blender's builds ship it in
+    their Python's site-packages, which Blender as a Python module does not
+    put on the path."""
+    try:
+        return importlib.import_module("openvdb")
+    except ImportError:
+        pass
+    base = bpy.utils.system_resource("PYTHON") if hasattr(bpy.utils, "system_resource") else ""
+    version = f"python{sys.version_info.major}.{sys.version_info.minor}"
+    for site in (os.path.join(base, "lib", version, "site-packages"), os.path.join(base, "lib", "site-packages")):
+        if base and glob.glob(os.path.join(site, "openvdb*")) and site not in sys.path:
+            sys.path.append(site)
+            try:
+                return importlib.import_module("openvdb")
+            except ImportError:
+                return None
+    return None
+
+
+def _shader(obj, warn):
+    material = next((s.material for s in obj.material_slots if s.material is not None), None)
+    if material is None or not uses_nodes(material) or material.node_tree is None:
+        return DEFAULT
+    output = _output_node(material.node_tree, ("OUTPUT_MATERIAL",))
+    socket = output.inputs.get("Volume") if output is not None else None
+    if socket is None or not socket.is_linked:
+        return None
+    return read_grid_volume(socket, lambda text: warn(f"Material '{material.name}': {text}"))
+
+
+class GridFiles:
+    """Voxel arrays read from .vdb files, kept while the file is unchanged
+    (a viewport edit or the next frame of an animation reads it once)."""
+
+    def __init__(self):
+        self._cache = {}
+        self._warned_module = False
+
+    def read(self, path, name, warn):
+        """(dense float32 array, index of its first voxel) of a scalar grid, or None."""
+        try:
+            stamp = os.stat(path).st_mtime_ns
+        except OSError:
+            warn(f"volume file '{path}' cannot be read")
+            return None
+        key = (path, name)
+        hit = self._cache.get(key)
+        if hit is not None and hit[0] == stamp:
+            return hit[1]
+        vdb = openvdb_module()
+        if vdb is None:
+            if not self._warned_module:
+                warn("volume objects need the 'openvdb' module of Blender's Python, which this Blender lacks; "
+                     "they are not rendered")
+                self._warned_module = True
+            return None
+        try:
+            grid = vdb.read(path, name)
+        except Exception as error:      # noqa: BLE001 -- a bad file must not stop a render
+            warn(f"grid '{name}' of '{path}' cannot be read ({error})")
+            return None
+        if grid.valueTypeName not in ("float", "double"):
+            warn(f"grid '{name}' of '{path}' holds {grid.valueTypeName} values, not a scalar density")
+            return None
+        lo, hi = (np.asarray(x, np.int64) for x in grid.evalActiveVoxelBoundingBox())
+        dims = hi - lo + 1
+        if (dims <= 0).any() or grid.activeVoxelCount() == 0:
+            out = (np.zeros((1, 1, 1), np.float32), lo * 0, 1)
+        else:
+            block = 1
+            while int(np.prod(-(-dims // block))) > MAX_VOXELS:
+                block += 1
+            if block > 1:
+                warn(f"grid '{name}' of '{path}' ({dims[0]}x{dims[1]}x{dims[2]} voxels) is averaged "
+                     f"down {block}x per axis")
+            arr = np.zeros(tuple(int(x) for x in dims), np.float32)
+            grid.copyToArray(arr, ijk=tuple(int(x) for x in lo))
+            if block > 1:
+                pad = [(0, int(-(-x // block) * block - x)) for x in dims]
+                a = np.pad(arr, pad)
+                s = a.shape
+                arr = a.reshape(s[0] // block, block, s[1] // block, block, s[2] // block, block).mean(axis=(1, 3, 5))
+            out = (np.ascontiguousarray(arr, np.float32), lo, block)
+        self._cache[key] = (stamp, out)
+        return out
+
+
+def volume_grids(obj, matrix_world, files, warn):
+    """The GridMedium list of one volume object instance."""
+    vol = obj.data
+    label = f"Volume '{obj.name}'"
+    shader = _shader(obj, warn)
+    if shader is None:
+        return []
+    scaled, constant, names = shader
+    if any(m.show_render for m in getattr(obj.original, "modifiers", ())):
+        warn(f"{label}: modifiers are not applied (the file's grids render)")
+    try:
+        vol.grids.load()
+    except Exception:                   # noqa: BLE001
+        pass
+    path = vol.grids.frame_filepath if hasattr(vol.grids, "frame_filepath") else ""
+    if not path and obj.original is not None:
+        path = getattr(obj.original.data.grids, "frame_filepath", "") if obj.original.data else ""
+    path = bpy.path.abspath(path, library=vol.library) if path else ""
+    if not path or not os.path.isfile(path):
+        if len(vol.grids):
+            warn(f"{label}: its grids are not in a file (made by nodes or modifiers); it is not rendered")
+        else:
+            warn(f"{label}: no volume file; it is not rendered")
+        return []
+    bgrids = {g.name: g for g in vol.grids}
+    name = next((n for n in names if n in bgrids), None)
+    mask = name is None
+    if mask:
+        # No grid drives the density: the medium fills where the first
+        # scalar grid is active, as Cycles fills the volume's bounds.
+        name = next((g.name for g in vol.grids if g.data_type in ("FLOAT", "DOUBLE")), None)
+        if names and name is not None:
+            warn(f"{label}: no grid named {', '.join(repr(n) for n in names)}; the medium fills "
+                 f"where grid '{name}' is active")
+        if not names:
+            scaled = dict(constant, emission=(0.0,) * 3)
+            constant = dict(NONE, emission=constant["emission"])
+    if name is None:
+        warn(f"{label}: no scalar grid; it is not rendered")
+        return []
+    read = files.read(path, name, warn)
+    if read is None:
+        return []
+    arr, lo, block = read
+    index_to_object = np.array(bgrids[name].matrix_object, np.float64)
+    shift = np.eye(4)
+    shift[:3, :3] *= block
+    shift[:3, 3] = lo + 0.5 * (block - 1)
+    to_world = np.array(matrix_world, np.float64) @ index_to_object @ shift
+    try:
+        to_index = np.linalg.inv(to_world)
+    except np.linalg.LinAlgError:
+        warn(f"{label}: its transform is singular; it is not rendered")
+        return []
+    if mask:
+        arr = (arr > 0).astype(np.float32)
+    return [GridMedium(arr, to_index.astype(np.float64), coefficients(scaled), coefficients(constant), name=obj.name)]
