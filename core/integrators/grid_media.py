@@ -111,25 +111,26 @@ class PreparedGrid:
     def density(self, p):
         """Trilinear density at padded index points p (..., 3); zero outside."""
         shape = p.shape[:-1]
-        p = p.reshape(-1, 3)
+        p = p.reshape(-1, 3).astype(np.float32)
         n = self.padded.shape
         base = np.floor(p)
         f = p - base
         i = base.astype(np.int64)
         ok = ((i >= 0) & (i < np.asarray(n) - 1)).all(axis=1)
-        i = np.where(ok[:, None], i, 0)
-        out = np.zeros(len(p), np.float64)
-        flat = self.padded.reshape(-1)
         sy, sz = n[1] * n[2], n[2]
-        idx = i[:, 0] * sy + i[:, 1] * sz + i[:, 2]
-        for dx in (0, 1):
-            wx = f[:, 0] if dx else 1.0 - f[:, 0]
-            for dy in (0, 1):
-                wy = f[:, 1] if dy else 1.0 - f[:, 1]
-                for dz in (0, 1):
-                    wz = f[:, 2] if dz else 1.0 - f[:, 2]
-                    out += wx * wy * wz * flat[idx + dx * sy + dy * sz + dz]
-        return np.where(ok, out, 0.0).reshape(shape)
+        idx = np.where(ok, i[:, 0] * sy + i[:, 1] * sz + i[:, 2], 0)
+        flat = self.padded.reshape(-1)
+        fx, fy, fz = f[:, 0], f[:, 1], f[:, 2]
+        # Along z, then y, then x.
+        c = []
+        for off in (0, sz, sy, sy + sz):
+            a = flat[idx + off]
+            c.append(a + fz * (flat[idx + off + 1] - a))
+        c00, c01, c10, c11 = c
+        c0 = c00 + fy * (c01 - c00)
+        c1 = c10 + fy * (c11 - c10)
+        out = c0 + fx * (c1 - c0)
+        return np.where(ok, out, 0.0).astype(np.float64).reshape(shape)
 
     def steps(self, o, d, t0, t1):
         """The march over [t0, t1] of each ray: bounds (M, S + 1) and the
@@ -162,6 +163,13 @@ def merge(hom_bounds, hom_vals, parts):
     bounds are evenly spaced, or equal past its last step). Returns the
     merged bounds and values."""
     m = len(hom_bounds)
+    if hom_bounds.shape[1] == 2 and len(parts) == 1:
+        # One interval of homogeneous media (none, or the world's) and one
+        # grid: already in order, [0, t0], the steps, [t1, end].
+        b, v = parts[0]
+        bounds = np.concatenate([hom_bounds[:, :1], b, hom_bounds[:, 1:]], axis=1)
+        vals = np.concatenate([hom_vals, hom_vals + v, hom_vals], axis=1)
+        return bounds, vals
     all_bounds = np.sort(np.concatenate([hom_bounds] + [b for b, _ in parts], axis=1), axis=1)
     with np.errstate(invalid="ignore"):
         mid = 0.5 * (all_bounds[:, :-1] + all_bounds[:, 1:])

@@ -63,6 +63,11 @@ class SceneReader:
                                   bpy.types.MetaBall)) and u.geometry:
                 walk = True
                 reread_data.add(id_.as_pointer())
+            elif isinstance(id_, bpy.types.Volume):
+                walk = True
+        # Volume objects' media are read on the walk (export/volume_objects.py),
+        # from their materials too.
+        walk = walk or bool(materials and getattr(self, "_grid_signature", None))
         if materials:
             changed = [m for m in materials if self._materials.refresh(m, depsgraph)]
             if changed:

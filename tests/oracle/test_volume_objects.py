@@ -7,69 +7,13 @@ density, 40 voxels a side) over a lit floor, a sun and a grey world; both
 engines at 64 spp. Mean within 2 % and block chi < 2.5, as the node tests.
 """
 
-import math
-
 import numpy as np
 import pytest
 
-from support.vdb_util import lumpy_ball, write_vdb
+from support.volume_scenes import lumpy_ball, smoke_material, stage, volume_object, write_vdb
 
 SAMPLES = 64
 BOUNCES = 3
-
-
-def _stage(width=64, height=48):
-    import bpy
-    from support.addon_util import add_mesh, camera, fresh, rect, world
-    from support.blender_util import diffuse_material
-    scene = fresh(width, height)
-    world((0.2, 0.25, 0.3))
-    add_mesh("Floor", *rect(-4, 4, -4, 4), mat=diffuse_material("Floor", (0.6, 0.6, 0.6)))
-    sun = bpy.data.lights.new("Sun", "SUN")
-    sun.energy = 3.0
-    ob = bpy.data.objects.new("Sun", sun)
-    ob.rotation_euler = (0.6, 0.3, 0.5)
-    scene.collection.objects.link(ob)
-    camera(location=(1.0, -4.0, 2.0), rotation=(math.radians(75), 0, 0), lens=35)
-    return scene
-
-
-def _volume_object(path, name="Smoke", material=None):
-    import bpy
-    vol = bpy.data.volumes.new(name)
-    vol.filepath = path
-    ob = bpy.data.objects.new(name, vol)
-    ob.location = (0.0, 0.0, 0.2)
-    bpy.context.scene.collection.objects.link(ob)
-    if material is not None:
-        vol.materials.append(material)
-    return ob
-
-
-def _material(case):
-    """A volume material: the Principled Volume of the case, or a Volume
-    Scatter whose Density an Attribute node feeds."""
-    import bpy
-    mat = bpy.data.materials.new(case)
-    tree = mat.node_tree
-    tree.nodes.remove(tree.nodes["Principled BSDF"])
-    out = tree.nodes["Material Output"]
-    if case == "attribute_scatter":
-        node = tree.nodes.new("ShaderNodeVolumeScatter")
-        node.inputs["Color"].default_value = (0.6, 0.8, 0.9, 1)
-        node.inputs["Anisotropy"].default_value = 0.4
-        attr = tree.nodes.new("ShaderNodeAttribute")
-        attr.attribute_name = "density"
-        tree.links.new(attr.outputs["Fac"], node.inputs["Density"])
-    else:
-        node = tree.nodes.new("ShaderNodeVolumePrincipled")
-        node.inputs["Color"].default_value = (0.8, 0.6, 0.4, 1)
-        node.inputs["Density"].default_value = 2.0
-        if case == "emission":
-            node.inputs["Emission Strength"].default_value = 0.5
-            node.inputs["Emission Color"].default_value = (1.0, 0.5, 0.2, 1)
-    tree.links.new(node.outputs[0], out.inputs["Volume"])
-    return mat, node
 
 
 @pytest.mark.parametrize("case", ["principled", "attribute_scatter", "emission", "no_material"])
@@ -78,9 +22,9 @@ def test_vdb_matches_cycles(addon, tmp_path, case):
     the floor and (with emission) the glow that fills its box as in Cycles;
     without a material both engines use their default volume shader."""
     from support.blender_util import compare_with_cycles
-    scene = _stage()
+    scene = stage()
     path = write_vdb(tmp_path / "ball.vdb", {"density": lumpy_ball()})
-    _volume_object(path, material=None if case == "no_material" else _material(case)[0])
+    volume_object(path, material=None if case == "no_material" else smoke_material(case)[0])
     r = compare_with_cycles(scene, SAMPLES, BOUNCES, block=8)
     assert np.isfinite(r["ours"]).all()
     print(f"{case}: mean ours {r['ours_mean']:.4f} cycles {r['cycles_mean']:.4f} "
@@ -93,10 +37,10 @@ def test_vdb_can_fail(addon, tmp_path):
     """The comparison fails when the grid is misread: three times the
     density against Cycles' is far outside the tolerance."""
     from support.blender_util import block_means, render_image, setup_cycles, setup_restir
-    scene = _stage()
+    scene = stage()
     path = write_vdb(tmp_path / "ball.vdb", {"density": lumpy_ball()})
-    mat, node = _material("principled")
-    _volume_object(path, material=mat)
+    mat, node = smoke_material("principled")
+    volume_object(path, material=mat)
     setup_cycles(scene, SAMPLES, 1, BOUNCES)
     cycles = block_means(render_image(scene), 8)
     node.inputs["Density"].default_value = 6.0
@@ -113,14 +57,14 @@ def test_vdb_bad_input(addon, reports, tmp_path):
     warnings that name each volume that is not rendered."""
     from support.addon_util import render_exr
     from restir_gi.core.camera.film import read_exr
-    scene = _stage(32, 24)
+    scene = stage(32, 24)
     nan = lumpy_ball()
     nan[10:20, 10:20, 10:20] = np.nan
-    _volume_object(write_vdb(tmp_path / "zeros.vdb", {"density": np.zeros((4, 4, 4), np.float32)}), "Zeros")
-    _volume_object(write_vdb(tmp_path / "nan.vdb", {"density": nan}), "NaN")
-    _volume_object(write_vdb(tmp_path / "vec.vdb", {"velocity": np.ones((4, 4, 4, 3), np.float32)}), "Vector")
-    _volume_object(str(tmp_path / "missing.vdb"), "Missing")
-    _volume_object("", "Empty")
+    volume_object(write_vdb(tmp_path / "zeros.vdb", {"density": np.zeros((4, 4, 4), np.float32)}), "Zeros")
+    volume_object(write_vdb(tmp_path / "nan.vdb", {"density": nan}), "NaN")
+    volume_object(write_vdb(tmp_path / "vec.vdb", {"velocity": np.ones((4, 4, 4, 3), np.float32)}), "Vector")
+    volume_object(str(tmp_path / "missing.vdb"), "Missing")
+    volume_object("", "Empty")
     for mode in ("PATH", "RESTIR_BIASED"):
         scene.restir_gi.mode = mode
         reports.log.clear()

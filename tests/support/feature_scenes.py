@@ -147,20 +147,20 @@ def volume(scene):
 
 def volume_object(scene):
     """A lumpy ball of smoke from a .vdb file (a volume object, Principled
-    Volume of density 1.5) in place of the tall box; Volume bounces 2."""
+    Volume of density 4) in place of the tall box; Volume bounces 2."""
     import os
     import tempfile
     import bpy
-    from .vdb_util import lumpy_ball, write_vdb
+    from .volume_scenes import lumpy_ball, write_vdb
     path = write_vdb(os.path.join(tempfile.gettempdir(), "restir_gi_contact_ball.vdb"), {"density": lumpy_ball()},
-                     voxel=0.6 / 40)
+                     voxel=1.0 / 40)
     bpy.data.objects.remove(bpy.data.objects["TallBox"])
     vol = bpy.data.volumes.new("Smoke")
     vol.filepath = path
     ob = bpy.data.objects.new("Smoke", vol)
-    ob.location = (-0.45, -0.1, 0.02)
+    ob.location = (-0.9, -0.4, 0.0)
     scene.collection.objects.link(ob)
-    vol.materials.append(_principled_volume("Smoke", Density=1.5, Color=(0.9, 0.8, 0.7, 1.0)))
+    vol.materials.append(_principled_volume("Smoke", Density=4.0, Color=(0.9, 0.8, 0.7, 1.0)))
     scene.cycles.volume_bounces = 2
 
 
