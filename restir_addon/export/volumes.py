@@ -6,7 +6,7 @@ volume closures define them.
 - Volume Scatter: sigma_s = Color x Density, anisotropy g (Henyey-Greenstein;
   the other phase functions render as Henyey-Greenstein, with a warning).
 - Principled Volume: sigma_s = Color x Density, sigma_a = (1 - Color) x
-  (1 - Absorption Color) x Density, emission Emission Strength x Emission
+  (1 - sqrt(Absorption Color)) x Density, emission Emission Strength x Emission
   Color (blackbody emission is not rendered: a warning).
 - Volume Coefficients: its absorption, scattering and emission coefficients.
 - Emission: Color x Strength; Add Shader sums, Mix Shader mixes by its factor.
@@ -107,7 +107,8 @@ class _Reader:
             absorb = np.clip(self.color(node, "Absorption Color", (0, 0, 0)), 0, None)
             g = float(np.clip(self.number(node, "Anisotropy", 0.0), -0.999, 0.999))
             ss = color * density
-            sa = np.clip(1.0 - color, 0, None) * np.clip(1.0 - absorb, 0, None) * density
+            # (Cycles takes the square root of the Absorption Color.)
+            sa = np.clip(1.0 - color, 0, None) * np.clip(1.0 - np.sqrt(absorb), 0, None) * density
             em = max(self.number(node, "Emission Strength", 0.0), 0.0) * np.clip(
                 self.color(node, "Emission Color", (1, 1, 1)), 0, None)
             if self.number(node, "Blackbody Intensity", 0.0) > 0:
