@@ -27,6 +27,8 @@ import hashlib
 
 import numpy as np
 
+from ..materials.shader.nodes_spectrum import blackbody_rec709
+
 MAX_STEPS = 128
 CHUNK = 2048
 
@@ -38,6 +40,10 @@ class GridMedium:
     scaled: np.ndarray          # (C,) coefficients per unit of density
     constant: np.ndarray        # (C,) coefficients inside the grid's box (emission)
     name: str = ""
+    # A temperature grid instead of a density: (Temperature, Blackbody
+    # Intensity, Blackbody Tint (3,)) of a Principled Volume. Its voxels,
+    # times Temperature, are kelvins; the grid adds only blackbody emission.
+    blackbody: tuple = None
     _digest: bytes = field(default=None, repr=False, compare=False)
 
     def digest(self):
@@ -46,6 +52,7 @@ class GridMedium:
         if self._digest is not None:
             return self._digest
         h = hashlib.sha1()
+        h.update(repr(self.blackbody).encode())
         for a in (self.density, self.to_index, self.scaled, self.constant):
             a = np.ascontiguousarray(a)
             h.update(repr((a.dtype.str, a.shape)).encode())
@@ -82,7 +89,14 @@ class PreparedGrid:
             to_world = np.linalg.pinv(m[:3, :3])
         voxel = np.linalg.norm(to_world, axis=0)       # world length of one index step per axis
         self.voxel = float(voxel.min()) if np.isfinite(voxel).all() and voxel.min() > 0 else 0.0
-        scatters = dens.max(initial=0.0) > 0 and np.abs(row).max() > 0
+        self.blackbody = None
+        if grid.blackbody is not None:
+            kelvin, intensity, tint = grid.blackbody
+            self.blackbody = (float(kelvin), float(intensity), np.clip(np.nan_to_num(np.asarray(tint, np.float64)),
+                                                                        0, None)[:3])
+            row = np.zeros_like(row)
+            self.scaled = row
+        scatters = dens.max(initial=0.0) > 0 and (np.abs(row).max() > 0 or self.blackbody is not None)
         self.empty = self.voxel <= 0 or not (scatters or np.abs(self.constant).max() > 0)
 
     def to_index_space(self, o, d):
@@ -147,8 +161,31 @@ class PreparedGrid:
         p = oi[:, None, :] + di[:, None, :] * mid[..., None]
         dens = self.density(p)
         vals = dens[..., None] * self.scaled + self.constant
+        if self.blackbody is not None:
+            kelvin, intensity, tint = self.blackbody
+            vals = vals.copy()
+            vals[..., 6:9] += blackbody_emission(kelvin * dens, intensity) * tint
         vals = np.where((j[None, :-1] < count[:, None])[..., None], vals, 0.0)
         return bounds, vals
+
+
+STEFAN_BOLTZMANN = 5.670373e-8 * 1e-6 / np.pi     # Cycles' constant, per kelvin^4
+_KELVIN = np.linspace(0.0, 20000.0, 4001)
+_BLACKBODY = blackbody_rec709(np.maximum(_KELVIN, 800.0)).astype(np.float64)
+
+
+def blackbody_emission(kelvin, intensity):
+    """(..., 3) emission of a Principled Volume's blackbody at temperatures
+    ``kelvin`` (...): the blackbody colour of luminance one (Cycles' below
+    800 K is that of 800 K) times Stefan-Boltzmann's law, mixed toward
+    constant by ``intensity`` as Cycles' Blackbody Intensity."""
+    t = np.clip(np.nan_to_num(np.asarray(kelvin, np.float64)), 0.0, None)
+    x = np.minimum(t, _KELVIN[-1]) / (_KELVIN[1] - _KELVIN[0])
+    i = np.minimum(x.astype(np.int64), len(_KELVIN) - 2)
+    f = (x - i)[..., None]
+    colour = _BLACKBODY[i] * (1 - f) + _BLACKBODY[i + 1] * f
+    power = STEFAN_BOLTZMANN * (1.0 + intensity * (t * t * t * t - 1.0))
+    return colour * np.maximum(power, 0.0)[..., None]
 
 
 def prepare(grids):

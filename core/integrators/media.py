@@ -295,7 +295,7 @@ class Segments:
 
     def emission(self):
         out = self.hom.emission()
-        if not any(np.abs(g.constant[6:9]).max() > 0 for g in self.grids) and \
+        if not any(np.abs(g.constant[6:9]).max() > 0 or g.blackbody is not None for g in self.grids) and \
                 not np.abs(self.hom.vals[..., 6:9]).max(initial=0.0) > 0:
             return out          # nothing emits: the grids change nothing
         for r, iv in self._chunks():
@@ -360,8 +360,8 @@ def media_of(scene, eps):
            getattr(scene, "versions", None),
            tuple(sorted((i, tuple(coefficients(v))) for i, v in volumes.items())),
            None if world is None else tuple(coefficients(world)),
-           tuple((id(g.density), g.density.shape, g.to_index.tobytes(), g.scaled.tobytes(), g.constant.tobytes())
-                 for g in grids))
+           tuple((id(g.density), g.density.shape, g.to_index.tobytes(), g.scaled.tobytes(), g.constant.tobytes(),
+                  repr(g.blackbody)) for g in grids))
     with _LOCK:
         cached = _CACHE.get(id(scene))
         if cached is not None and cached[0] == key:

@@ -8,6 +8,8 @@ object's material's Volume output gives the coefficients: a Principled
 Volume's Density Attribute (``density`` by default), or an Attribute node
 feeding a Density, names the grid that scales them; emission fills the
 grid's box, as Cycles' Principled Volume does not scale it by the density.
+A Principled Volume's blackbody takes its temperature from the grid its
+Temperature Attribute names (``temperature``), times its Temperature.
 A volume object without a material renders with Cycles' default volume
 shader, a Principled Volume of its default values.
 
@@ -26,8 +28,8 @@ import numpy as np
 
 import bpy
 
-from ...core.integrators.grid_media import GridMedium
-from ...core.integrators.media import coefficients
+from ...core.integrators.grid_media import GridMedium, blackbody_emission
+from ...core.integrators.media import C, coefficients
 from .node_graph import _output_node
 from .node_values import uses_nodes
 from .volumes import read_grid_volume
@@ -35,7 +37,7 @@ from .volumes import read_grid_volume
 MAX_VOXELS = 1 << 25
 NONE = {"sigma_a": (0.0,) * 3, "sigma_s": (0.0,) * 3, "emission": (0.0,) * 3, "g": 0.0}
 # Cycles' default volume shader: a Principled Volume of its defaults.
-DEFAULT = (dict(NONE, sigma_a=(0.5,) * 3, sigma_s=(0.5,) * 3), NONE, ["density"])
+DEFAULT = (dict(NONE, sigma_a=(0.5,) * 3, sigma_s=(0.5,) * 3), NONE, ["density"], [])
 
 
 def openvdb_module():
@@ -133,7 +135,7 @@ def volume_grids(obj, matrix_world, files, warn):
     shader = _shader(obj, warn)
     if shader is None:
         return []
-    scaled, constant, names = shader
+    scaled, constant, names, blackbody = shader
     if any(m.show_render for m in getattr(obj.original, "modifiers", ())):
         warn(f"{label}: modifiers are not applied (the file's grids render)")
     try:
@@ -166,20 +168,40 @@ def volume_grids(obj, matrix_world, files, warn):
     if name is None:
         warn(f"{label}: no scalar grid; it is not rendered")
         return []
-    read = files.read(path, name, warn)
-    if read is None:
+    placed = _placed(files, path, bgrids[name], matrix_world, label, warn)
+    if placed is None:
         return []
+    out = []
+    for grid_name, kelvin, intensity, tint in blackbody:
+        temperature = bgrids.get(grid_name)
+        hot = _placed(files, path, temperature, matrix_world, label, warn) \
+            if temperature is not None and temperature.data_type in ("FLOAT", "DOUBLE") else None
+        if hot is not None:
+            out.append(GridMedium(hot[0], hot[1], np.zeros(C, np.float32), np.zeros(C, np.float32),
+                                  name=f"{obj.name}:{grid_name}", blackbody=(kelvin, intensity, tint)))
+        else:
+            # Cycles: without the grid the Temperature holds everywhere.
+            em = np.asarray(constant["emission"], np.float64) + blackbody_emission(kelvin, intensity) * tint
+            constant = dict(constant, emission=tuple(float(x) for x in em))
+    arr, to_index = placed
+    if mask:
+        arr = (arr > 0).astype(np.float32)
+    return [GridMedium(arr, to_index, coefficients(scaled), coefficients(constant), name=obj.name)] + out
+
+
+def _placed(files, path, grid, matrix_world, label, warn):
+    """(voxels, world-to-index matrix) of one of a volume's grids, or None."""
+    read = files.read(path, grid.name, warn)
+    if read is None:
+        return None
     arr, lo, block = read
-    index_to_object = np.array(bgrids[name].matrix_object, np.float64)
+    index_to_object = np.array(grid.matrix_object, np.float64)
     shift = np.eye(4)
     shift[:3, :3] *= block
     shift[:3, 3] = lo + 0.5 * (block - 1)
     to_world = np.array(matrix_world, np.float64) @ index_to_object @ shift
     try:
-        to_index = np.linalg.inv(to_world)
+        return arr, np.linalg.inv(to_world)
     except np.linalg.LinAlgError:
         warn(f"{label}: its transform is singular; it is not rendered")
-        return []
-    if mask:
-        arr = (arr > 0).astype(np.float32)
-    return [GridMedium(arr, to_index.astype(np.float64), coefficients(scaled), coefficients(constant), name=obj.name)]
+        return None

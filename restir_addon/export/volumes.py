@@ -7,7 +7,8 @@ volume closures define them.
   the other phase functions render as Henyey-Greenstein, with a warning).
 - Principled Volume: sigma_s = Color x Density, sigma_a = (1 - Color) x
   (1 - sqrt(Absorption Color)) x Density, emission Emission Strength x Emission
-  Color (blackbody emission is not rendered: a warning).
+  Color plus the blackbody of the Temperature (core/integrators/grid_media.py's
+  blackbody_emission; a volume object's temperature grid scales it).
 - Volume Coefficients: its absorption, scattering and emission coefficients.
 - Emission: Color x Strength; Add Shader sums, Mix Shader mixes by its factor.
 
@@ -20,6 +21,8 @@ that scales the density (read with ``grids``).
 """
 
 import numpy as np
+
+from ...core.integrators.grid_media import blackbody_emission
 
 ZERO = np.zeros(3)
 
@@ -44,6 +47,10 @@ class _Reader:
     def __init__(self, warn, grids=None):
         self.warn = warn
         self.grids = grids      # a list: grid names that scale densities are put in it
+        # With grids: (temperature grid name, Temperature, Blackbody
+        # Intensity, Blackbody Tint) of each Principled Volume's blackbody,
+        # left out of the emission for the grid to give it.
+        self.blackbody = []
 
     def value(self, node, name, default):
         socket = node.inputs.get(name)
@@ -111,8 +118,16 @@ class _Reader:
             sa = np.clip(1.0 - color, 0, None) * np.clip(1.0 - np.sqrt(absorb), 0, None) * density
             em = max(self.number(node, "Emission Strength", 0.0), 0.0) * np.clip(
                 self.color(node, "Emission Color", (1, 1, 1)), 0, None)
-            if self.number(node, "Blackbody Intensity", 0.0) > 0:
-                self.warn(f"node '{node.name}': blackbody emission is not rendered")
+            intensity = self.number(node, "Blackbody Intensity", 0.0)
+            if intensity > 1e-3:
+                kelvin = max(self.number(node, "Temperature", 1000.0), 0.0)
+                tint = np.clip(self.color(node, "Blackbody Tint", (1.0, 1.0, 1.0)), 0, None)
+                attribute = node.inputs.get("Temperature Attribute")
+                name = str(getattr(attribute, "default_value", "") or "")
+                if self.grids is not None and name:
+                    self.blackbody.append((name, kelvin, float(intensity), tuple(float(x) for x in tint)))
+                else:
+                    em = em + blackbody_emission(kelvin, intensity) * tint
             return sa, ss, em, float(ss.mean() * g)
         if kind == "EMISSION":
             strength = max(self.number(node, "Strength", 1.0), 0.0)
@@ -146,11 +161,12 @@ def read_volume(socket, warn):
 def read_grid_volume(socket, warn):
     """A volume object's shader: (medium dict of absorption and scattering per
     unit of the grid, medium dict of emission, names of the grids that scale
-    the density). Without a grid name the whole medium is constant inside
+    the density, the blackbodies that a temperature grid drives: _Reader's). Without a grid name the whole medium is constant inside
     the volume (the second dict holds it all), as Cycles fills a volume
     object's bounds when no grid drives the density."""
     grids = []
-    sa, ss, em, gs = _Reader(warn, grids).closure(socket)
+    reader = _Reader(warn, grids)
+    sa, ss, em, gs = reader.closure(socket)
     if grids:
-        return _medium(sa, ss, ZERO, gs), _medium(ZERO, ZERO, em, 0.0), grids
-    return _medium(ZERO, ZERO, ZERO, 0.0), _medium(sa, ss, em, gs), grids
+        return _medium(sa, ss, ZERO, gs), _medium(ZERO, ZERO, em, 0.0), grids, reader.blackbody
+    return _medium(ZERO, ZERO, ZERO, 0.0), _medium(sa, ss, em, gs), grids, reader.blackbody

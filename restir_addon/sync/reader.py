@@ -223,7 +223,8 @@ class SceneReader:
             self._light_rows = signature
             changes["lights"] = Lights.from_list(light_rows)
         # Grids: the arrays are GridFiles' own while their files are unchanged.
-        signature = [(id(g.density), g.to_index.tobytes(), g.scaled.tobytes(), g.constant.tobytes()) for g in grids]
+        signature = [(id(g.density), g.to_index.tobytes(), g.scaled.tobytes(), g.constant.tobytes(),
+                      repr(g.blackbody)) for g in grids]
         if signature != getattr(self, "_grid_signature", None):
             self._grid_signature = signature
             changes["volumes"] = grids

@@ -16,14 +16,21 @@ SAMPLES = 64
 BOUNCES = 3
 
 
-@pytest.mark.parametrize("case", ["principled", "attribute_scatter", "emission", "no_material"])
+@pytest.mark.parametrize("case", ["principled", "attribute_scatter", "emission", "no_material", "fire",
+                                  "fire_without_grid"])
 def test_vdb_matches_cycles(addon, tmp_path, case):
     """A lumpy ball of smoke from a .vdb file: its shading, its shadow on
     the floor and (with emission) the glow that fills its box as in Cycles;
-    without a material both engines use their default volume shader."""
+    without a material both engines use their default volume shader. Fire:
+    a blackbody whose temperature grid (a smaller ball, up to 1.2 x the
+    Temperature of 1500 K) makes it glow, or without that grid the Temperature
+    everywhere in the box."""
     from support.blender_util import compare_with_cycles
     scene = stage()
-    path = write_vdb(tmp_path / "ball.vdb", {"density": lumpy_ball()})
+    grids = {"density": lumpy_ball()}
+    if case == "fire":
+        grids["temperature"] = np.clip(lumpy_ball() / 2.5, 0, 1.2)
+    path = write_vdb(tmp_path / "ball.vdb", grids)
     volume_object(path, material=None if case == "no_material" else smoke_material(case)[0])
     r = compare_with_cycles(scene, SAMPLES, BOUNCES, block=8)
     assert np.isfinite(r["ours"]).all()

@@ -72,6 +72,9 @@ CASES = {
     "absorption": ("ShaderNodeVolumeAbsorption", dict(Density=1.5, Color=(0.9, 0.3, 0.2, 1))),
     "principled_emission": ("ShaderNodeVolumePrincipled", {"Density": 0.5, "Emission Strength": 0.6,
                                                            "Emission Color": (1.0, 0.5, 0.2, 1)}),
+    "principled_blackbody": ("ShaderNodeVolumePrincipled", {"Density": 0.5, "Blackbody Intensity": 1.0,
+                                                            "Temperature": 1500.0,
+                                                            "Blackbody Tint": (1.0, 0.8, 0.9, 1)}),
     "principled_absorption_color": ("ShaderNodeVolumePrincipled", {"Density": 1.5, "Color": (0.5, 0.5, 0.5, 1),
                                                                    "Absorption Color": (0.6, 0.1, 0.3, 1)}),
 }

@@ -66,8 +66,9 @@ def volume_object(path, name="Smoke", material=None):
 
 
 def smoke_material(case):
-    """A volume material: the Principled Volume of the case, or a Volume
-    Scatter whose Density an Attribute node feeds."""
+    """A volume material: the Principled Volume of the case (with a
+    blackbody for "fire"), or a Volume Scatter whose Density an Attribute
+    node feeds ("attribute_scatter")."""
     import bpy
     mat = bpy.data.materials.new(case)
     tree = mat.node_tree
@@ -87,5 +88,10 @@ def smoke_material(case):
         if case == "emission":
             node.inputs["Emission Strength"].default_value = 0.5
             node.inputs["Emission Color"].default_value = (1.0, 0.5, 0.2, 1)
+        if case in ("fire", "fire_without_grid"):
+            node.inputs["Blackbody Intensity"].default_value = 1.0
+            node.inputs["Temperature"].default_value = 1500.0
+            node.inputs["Density"].default_value = 0.3         # thin smoke: the glow shows
+            node.inputs["Blackbody Tint"].default_value = (1.0, 0.9, 0.8, 1)
     tree.links.new(node.outputs[0], out.inputs["Volume"])
     return mat, node

@@ -161,3 +161,21 @@ def test06_bad_grids_are_no_medium():
     scat, t, w, ss, g = seg.sample(rng.random(4), rng.random(4))
     for out in (seg.transmittance(), seg.emission(), w, ss, g, t[scat]):
         assert np.isfinite(np.asarray(out, np.float64)).all()
+
+
+def test07_a_temperature_grid_glows_as_a_blackbody():
+    """A temperature grid (no density, nothing else emits): the rays through
+    it gather the blackbody emission of its temperature over its length,
+    between the span of full temperature and that span plus a voxel."""
+    from restir_gi.core.integrators.grid_media import blackbody_emission
+    n = 11
+    hot = _grid(np.ones((n, n, n)))
+    hot.blackbody = (1500.0, 1.0, (1.0, 0.5, 0.25))
+    media = _media(hot)
+    o, d = _rays((-5.0, 0.0, 0.0))
+    em = media.along(o, d, np.array([np.inf])).emission()[0]
+    voxel = 2.0 / (n - 1)
+    per_length = blackbody_emission(1500.0, 1.0) * np.array([1.0, 0.5, 0.25])
+    assert per_length[0] > 0.1
+    assert (em >= per_length * 2.0 - 1e-6).all() and (em <= per_length * (2.0 + voxel) + 1e-6).all()
+    assert np.allclose(media.along(o, d, np.array([np.inf])).transmittance(), 1.0)    # it absorbs nothing
