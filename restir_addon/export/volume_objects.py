@@ -35,6 +35,7 @@ from .node_values import uses_nodes
 from .volumes import read_grid_volume
 
 MAX_VOXELS = 1 << 25
+SLAB_VOXELS = 1 << 24       # voxels copied at a time at full resolution (64 MB)
 NONE = {"sigma_a": (0.0,) * 3, "sigma_s": (0.0,) * 3, "emission": (0.0,) * 3, "g": 0.0}
 # Cycles' default volume shader: a Principled Volume of its defaults.
 DEFAULT = (dict(NONE, sigma_a=(0.5,) * 3, sigma_s=(0.5,) * 3), NONE, ["density"], [])
@@ -93,7 +94,8 @@ class GridFiles:
         vdb = openvdb_module()
         if vdb is None:
             if not self._warned_module:
-                warn("volume objects need the 'openvdb' module of Blender's Python, which this Blender lacks; "
+                warn("volume objects need the 'openvdb' Python module, which Blender's own builds ship and "
+                     "this Blender lacks (a Linux distribution's Blender: install its python3-openvdb package); "
                      "they are not rendered")
                 self._warned_module = True
             return None
@@ -116,16 +118,28 @@ class GridFiles:
             if block > 1:
                 warn(f"grid '{name}' of '{path}' ({dims[0]}x{dims[1]}x{dims[2]} voxels) is averaged "
                      f"down {block}x per axis")
-            arr = np.zeros(tuple(int(x) for x in dims), np.float32)
-            grid.copyToArray(arr, ijk=tuple(int(x) for x in lo))
-            if block > 1:
-                pad = [(0, int(-(-x // block) * block - x)) for x in dims]
-                a = np.pad(arr, pad)
-                s = a.shape
-                arr = a.reshape(s[0] // block, block, s[1] // block, block, s[2] // block, block).mean(axis=(1, 3, 5))
+            arr = _dense(grid, lo, dims, block)
             out = (np.ascontiguousarray(arr, np.float32), lo, block)
         self._cache[key] = (stamp, out)
         return out
+
+
+def _dense(grid, lo, dims, block):
+    """The grid's voxels over the box lo .. lo + dims - 1 as a dense float32
+    array, averaged over blocks of ``block`` voxels a side; copied in slabs
+    along x so a sparse grid with a large box never needs its whole box in
+    memory at full resolution."""
+    out_dims = -(-dims // block)
+    out = np.zeros(tuple(int(x) for x in out_dims), np.float32)
+    ny, nz = int(out_dims[1] * block), int(out_dims[2] * block)
+    layers = block * max(1, SLAB_VOXELS // max(ny * nz, 1) // block)
+    for x0 in range(0, int(dims[0]), layers):
+        n = min(layers, -(-(int(dims[0]) - x0) // block) * block)
+        slab = np.zeros((n, ny, nz), np.float32)
+        grid.copyToArray(slab, ijk=(int(lo[0]) + x0, int(lo[1]), int(lo[2])))
+        slab = slab.reshape(n // block, block, ny // block, block, nz // block, block).mean(axis=(1, 3, 5))
+        out[x0 // block:x0 // block + len(slab)] = slab
+    return out
 
 
 def volume_grids(obj, matrix_world, files, warn):

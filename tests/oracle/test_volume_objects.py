@@ -84,3 +84,21 @@ def test_vdb_bad_input(addon, reports, tmp_path):
             assert any(f"'{name}'" in w and "not rendered" in w for w in warnings), (name, reports.log)
         if mode != "PATH":
             assert any("by Path Tracing" in w for w in warnings), reports.log
+
+
+def test_vdb_without_the_openvdb_module(addon, reports, tmp_path, monkeypatch):
+    """A Blender without the openvdb module (a Linux distribution's build):
+    one warning that says what to install, the volume left out, the image
+    valid."""
+    from support.addon_util import render_exr
+    from restir_gi.core.camera.film import read_exr
+    from restir_gi.restir_addon.export import volume_objects
+    scene = stage(32, 24)
+    path = write_vdb(tmp_path / "ball.vdb", {"density": lumpy_ball()})
+    monkeypatch.setattr(volume_objects, "openvdb_module", lambda: None)
+    volume_object(path, material=smoke_material("principled")[0])
+    render_exr(scene, tmp_path / "out.exr")
+    img = read_exr(tmp_path / "out.exr")
+    assert np.isfinite(img).all() and img.mean() > 0
+    warnings = [w for w in reports.of("WARNING") if "openvdb" in w]
+    assert len(warnings) == 1 and "python3-openvdb" in warnings[0], reports.log
