@@ -44,6 +44,12 @@ class GridMedium:
     # Intensity, Blackbody Tint (3,)) of a Principled Volume. Its voxels,
     # times Temperature, are kelvins; the grid adds only blackbody emission.
     blackbody: tuple = None
+    # A Principled Volume's colour grid on the density's voxels: (colour
+    # voxels (nx, ny, nz, 3), Color (3,), Density, (1 - sqrt(Absorption
+    # Color)) (3,), anisotropy). The scattering colour is Color times the
+    # grid's, so absorption and scattering follow it voxel by voxel, and
+    # ``scaled`` is not used.
+    color: tuple = None
     _digest: bytes = field(default=None, repr=False, compare=False)
 
     def digest(self):
@@ -53,6 +59,9 @@ class GridMedium:
             return self._digest
         h = hashlib.sha1()
         h.update(repr(self.blackbody).encode())
+        if self.color is not None:
+            h.update(np.ascontiguousarray(self.color[0]).tobytes())
+            h.update(repr(self.color[1:]).encode())
         for a in (self.density, self.to_index, self.scaled, self.constant):
             a = np.ascontiguousarray(a)
             h.update(repr((a.dtype.str, a.shape)).encode())
@@ -96,7 +105,16 @@ class PreparedGrid:
                                                                         0, None)[:3])
             row = np.zeros_like(row)
             self.scaled = row
-        scatters = dens.max(initial=0.0) > 0 and (np.abs(row).max() > 0 or self.blackbody is not None)
+        self.color = None
+        if grid.color is not None:
+            voxels, base, factor, absorb, g = grid.color
+            voxels = np.maximum(np.nan_to_num(np.asarray(voxels, np.float32)), 0.0)
+            if voxels.shape == dens.shape + (3,):
+                self.color = ([np.pad(voxels[..., k], 1) for k in range(3)],
+                              np.clip(np.asarray(base, np.float64), 0, None), max(float(factor), 0.0),
+                              np.clip(np.asarray(absorb, np.float64), 0, None), float(np.clip(g, -0.999, 0.999)))
+        scatters = dens.max(initial=0.0) > 0 and (np.abs(row).max() > 0 or self.blackbody is not None
+                                                  or self.color is not None)
         self.empty = self.voxel <= 0 or not (scatters or np.abs(self.constant).max() > 0)
 
     def to_index_space(self, o, d):
@@ -122,8 +140,9 @@ class PreparedGrid:
         t1 = np.minimum(hi.min(axis=1), np.asarray(t_end, np.float64))
         return t0, t1
 
-    def density(self, p):
-        """Trilinear density at padded index points p (..., 3); zero outside."""
+    def density(self, p, padded=None):
+        """Trilinear density (or the values of ``padded``, an array of the
+        same shape) at padded index points p (..., 3); zero outside."""
         shape = p.shape[:-1]
         p = p.reshape(-1, 3).astype(np.float32)
         n = self.padded.shape
@@ -133,7 +152,7 @@ class PreparedGrid:
         ok = ((i >= 0) & (i < np.asarray(n) - 1)).all(axis=1)
         sy, sz = n[1] * n[2], n[2]
         idx = np.where(ok, i[:, 0] * sy + i[:, 1] * sz + i[:, 2], 0)
-        flat = self.padded.reshape(-1)
+        flat = (self.padded if padded is None else padded).reshape(-1)
         fx, fy, fz = f[:, 0], f[:, 1], f[:, 2]
         # Along z, then y, then x.
         c = []
@@ -161,6 +180,14 @@ class PreparedGrid:
         p = oi[:, None, :] + di[:, None, :] * mid[..., None]
         dens = self.density(p)
         vals = dens[..., None] * self.scaled + self.constant
+        if self.color is not None:
+            channels, base, factor, absorb, g = self.color
+            scatter = np.stack([self.density(p, c) for c in channels], axis=-1) * base
+            amount = dens[..., None] * factor
+            vals = np.zeros(dens.shape + (len(self.constant),)) + self.constant
+            vals[..., 3:6] += scatter * amount
+            vals[..., :3] += (scatter + np.maximum(1.0 - scatter, 0.0) * absorb) * amount
+            vals[..., 9] += (scatter * amount).mean(axis=-1) * g
         if self.blackbody is not None:
             kelvin, intensity, tint = self.blackbody
             vals = vals.copy()

@@ -30,6 +30,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..geometry.accel import Accel
+from .field_media import field_grids, graph_fields
 from .grid_media import CHUNK, merge, prepare
 from ..util.vectors import orthonormal_basis
 
@@ -60,16 +61,23 @@ def coefficients(volume):
 class Media:
     """The media of a scene and their boundaries (see the module notes)."""
 
-    def __init__(self, scene, volumes, eps, world=None, grids=None):
-        self.grids = prepare(grids)
+    def __init__(self, scene, volumes, eps, world=None, grids=None, fields=None):
+        """fields: {material id: density graph} of the volumes whose density
+        a texture drives (field_media.py): their faces bound a grid of the
+        texture instead of a constant medium (which keeps their emission)."""
+        fields = {i: f for i, f in (fields or {}).items() if i in volumes}
         self.world = coefficients(world) if world is not None else None
         if self.world is not None and not np.abs(self.world).max() > 0:
             self.world = None
         mids = np.asarray(scene.material_ids)
         table = np.zeros((max(len(scene.shaders or ()), int(mids.max(initial=0)) + 1), C), np.float32)
+        per_density = {}
         for i, v in volumes.items():
             table[i] = coefficients(v)
-        boundary = np.isin(mids, list(volumes)) & (np.abs(table[mids]).max(axis=1) > 0)
+            if i in fields:
+                per_density[i] = coefficients(dict(v, emission=(0.0, 0.0, 0.0)))
+                table[i] = coefficients({"emission": v.get("emission", (0.0, 0.0, 0.0))})
+        boundary = np.isin(mids, list(volumes)) & ((np.abs(table[mids]).max(axis=1) > 0) | np.isin(mids, list(fields)))
         self.tri = np.nonzero(boundary)[0]
         self.obj = np.asarray(scene.object_ids)[self.tri] if getattr(scene, "object_ids", None) is not None \
             else np.zeros(len(self.tri), np.int64)
@@ -79,6 +87,7 @@ class Media:
         self.eps = float(eps)
         self.accel = Accel(scene.vertices, np.asarray(scene.triangles)[self.tri], threads=1) \
             if len(self.tri) else None
+        self.grids = prepare(list(grids or ()) + field_grids(scene, self, fields, per_density))
 
     @property
     def empty(self):
@@ -346,6 +355,7 @@ def media_of(scene, eps):
     """The scene's Media (cached per scene geometry and graphs: the passes
     of a frame, on either worker thread, share one), None without media."""
     volumes = graph_media(getattr(scene, "shaders", None))
+    fields = graph_fields(getattr(scene, "shaders", None))
     world = getattr(scene, "world_volume", None)
     grids = list(getattr(scene, "volume_grids", None) or ())
     if not volumes and world is None and not grids:
@@ -361,12 +371,14 @@ def media_of(scene, eps):
            tuple(sorted((i, tuple(coefficients(v))) for i, v in volumes.items())),
            None if world is None else tuple(coefficients(world)),
            tuple((id(g.density), g.density.shape, g.to_index.tobytes(), g.scaled.tobytes(), g.constant.tobytes(),
-                  repr(g.blackbody)) for g in grids))
+                  repr(g.blackbody), None if g.color is None else (id(g.color[0]), repr(g.color[1:])))
+                 for g in grids),
+           repr(sorted(fields.items())))
     with _LOCK:
         cached = _CACHE.get(id(scene))
         if cached is not None and cached[0] == key:
             return cached[1]
-        media = Media(scene, volumes, eps, world, grids)
+        media = Media(scene, volumes, eps, world, grids, fields)
         if media.empty:
             media.close()
             media = None

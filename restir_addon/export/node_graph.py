@@ -41,7 +41,7 @@ from collections import namedtuple
 from ...core.materials.shader.graph import Link, Node, ShaderGraph
 
 from .node_values import COLOR, FLOAT, SHADER, VECTOR, convert, node_props, plain, uses_nodes, zero
-from .volumes import read_volume
+from .volumes import read_volume, textured_density
 
 _GROUPS = ("GROUP", "CUSTOM GROUP")
 _PROCEDURAL = frozenset(("TEX_BRICK", "TEX_CHECKER", "TEX_GABOR", "TEX_GRADIENT", "TEX_MAGIC",
@@ -106,7 +106,17 @@ def translate(tree, output_types=("OUTPUT_MATERIAL",), images=None, name=""):
             graph.output = _Translator(graph, images).reader_value(surface, _Scope(tree), output.name)
         volume = output.inputs.get("Volume")
         if volume is not None and volume.is_linked and _available(volume):
-            graph.volume = read_volume(volume, graph.warnings.append)
+            # (A world's medium stays constant: its textured density warns.)
+            density = textured_density(volume) if "OUTPUT_MATERIAL" in output_types else None
+            graph.volume = read_volume(volume, graph.warnings.append, unit_density=density is not None)
+            if density is not None and graph.volume is not None:
+                field = ShaderGraph(nodes=[], name=f"{name} (volume density)")
+                field.output = _Translator(field, images).reader_value(density, _Scope(tree), density.node.name)
+                graph.warnings.extend(field.warnings)
+                if isinstance(field.output, Link):
+                    graph.volume_field = field
+                else:       # the nodes give a constant: as a plain input
+                    graph.volume = read_volume(volume, graph.warnings.append)
             if surface is not None and not surface.is_linked and "OUTPUT_MATERIAL" in output_types:
                 # Cycles' boundary of a volume-only material (a smoke domain,
                 # a fog box around the scene) lets light through: only the

@@ -32,13 +32,13 @@ from ...core.integrators.grid_media import GridMedium, blackbody_emission
 from ...core.integrators.media import C, coefficients
 from .node_graph import _output_node
 from .node_values import uses_nodes
-from .volumes import read_grid_volume
+from .volumes import GridShader, read_grid_volume
 
 MAX_VOXELS = 1 << 25
 SLAB_VOXELS = 1 << 24       # voxels copied at a time at full resolution (64 MB)
 NONE = {"sigma_a": (0.0,) * 3, "sigma_s": (0.0,) * 3, "emission": (0.0,) * 3, "g": 0.0}
 # Cycles' default volume shader: a Principled Volume of its defaults.
-DEFAULT = (dict(NONE, sigma_a=(0.5,) * 3, sigma_s=(0.5,) * 3), NONE, ["density"], [])
+DEFAULT = GridShader(dict(NONE, sigma_a=(0.5,) * 3, sigma_s=(0.5,) * 3), NONE, ["density"], [], [])
 
 
 def openvdb_module():
@@ -78,16 +78,27 @@ class GridFiles:
 
     def __init__(self):
         self._cache = {}
+        self._boxes = {}            # (path, grid) -> its box and blocks, for the grids read on it
         self._warned_module = False
 
     def read(self, path, name, warn):
-        """(dense float32 array, index of its first voxel) of a scalar grid, or None."""
+        """(dense float32 array, index of its first voxel, block) of a scalar
+        grid over its active voxels' box, or None."""
+        return self._read(path, name, None, warn)
+
+    def read_on(self, path, name, like, warn):
+        """Grid ``name`` on the voxels of grid ``like`` (read first): its
+        dense array over the same box and blocks, (nx, ny, nz, 3) for a
+        vector grid; or None."""
+        return self._read(path, name, like, warn)
+
+    def _read(self, path, name, like, warn):
         try:
             stamp = os.stat(path).st_mtime_ns
         except OSError:
             warn(f"volume file '{path}' cannot be read")
             return None
-        key = (path, name)
+        key = (path, name, like)
         hit = self._cache.get(key)
         if hit is not None and hit[0] == stamp:
             return hit[1]
@@ -104,40 +115,50 @@ class GridFiles:
         except Exception as error:      # noqa: BLE001 -- a bad file must not stop a render
             warn(f"grid '{name}' of '{path}' cannot be read ({error})")
             return None
-        if grid.valueTypeName not in ("float", "double"):
+        kinds = ("float", "double") if like is None else ("float", "double", "vec3s", "vec3d")
+        if grid.valueTypeName not in kinds:
             warn(f"grid '{name}' of '{path}' holds {grid.valueTypeName} values, not a scalar density")
             return None
-        lo, hi = (np.asarray(x, np.int64) for x in grid.evalActiveVoxelBoundingBox())
-        dims = hi - lo + 1
-        if (dims <= 0).any() or grid.activeVoxelCount() == 0:
-            out = (np.zeros((1, 1, 1), np.float32), lo * 0, 1)
+        width = 3 if grid.valueTypeName.startswith("vec3") else 0
+        if like is not None:
+            box = self._boxes.get((path, like))
+            if box is None:
+                return None
+            lo, dims, block = box
+            out = _dense(grid, lo, dims, block, width) if dims is not None else None
         else:
-            block = 1
-            while int(np.prod(-(-dims // block))) > MAX_VOXELS:
-                block += 1
-            if block > 1:
-                warn(f"grid '{name}' of '{path}' ({dims[0]}x{dims[1]}x{dims[2]} voxels) is averaged "
-                     f"down {block}x per axis")
-            arr = _dense(grid, lo, dims, block)
-            out = (np.ascontiguousarray(arr, np.float32), lo, block)
+            lo, hi = (np.asarray(x, np.int64) for x in grid.evalActiveVoxelBoundingBox())
+            dims = hi - lo + 1
+            if (dims <= 0).any() or grid.activeVoxelCount() == 0:
+                out, dims, block = (np.zeros((1, 1, 1), np.float32), lo * 0, 1), None, 1
+            else:
+                block = 1
+                while int(np.prod(-(-dims // block))) > MAX_VOXELS:
+                    block += 1
+                if block > 1:
+                    warn(f"grid '{name}' of '{path}' ({dims[0]}x{dims[1]}x{dims[2]} voxels) is averaged "
+                         f"down {block}x per axis")
+                out = (_dense(grid, lo, dims, block), lo, block)
+            self._boxes[(path, name)] = (lo, dims, block)
         self._cache[key] = (stamp, out)
         return out
 
 
-def _dense(grid, lo, dims, block):
+def _dense(grid, lo, dims, block, width=0):
     """The grid's voxels over the box lo .. lo + dims - 1 as a dense float32
-    array, averaged over blocks of ``block`` voxels a side; copied in slabs
-    along x so a sparse grid with a large box never needs its whole box in
-    memory at full resolution."""
-    out_dims = -(-dims // block)
-    out = np.zeros(tuple(int(x) for x in out_dims), np.float32)
-    ny, nz = int(out_dims[1] * block), int(out_dims[2] * block)
-    layers = block * max(1, SLAB_VOXELS // max(ny * nz, 1) // block)
+    array ((..., 3) for a vector grid: width 3), averaged over blocks of
+    ``block`` voxels a side; copied in slabs along x so a sparse grid with a
+    large box never needs its whole box in memory at full resolution."""
+    out_dims = tuple(int(x) for x in -(-dims // block))
+    tail = (width,) if width else ()
+    out = np.zeros(out_dims + tail, np.float32)
+    ny, nz = out_dims[1] * block, out_dims[2] * block
+    layers = block * max(1, SLAB_VOXELS // max(ny * nz * max(width, 1), 1) // block)
     for x0 in range(0, int(dims[0]), layers):
         n = min(layers, -(-(int(dims[0]) - x0) // block) * block)
-        slab = np.zeros((n, ny, nz), np.float32)
+        slab = np.zeros((n, ny, nz) + tail, np.float32)
         grid.copyToArray(slab, ijk=(int(lo[0]) + x0, int(lo[1]), int(lo[2])))
-        slab = slab.reshape(n // block, block, ny // block, block, nz // block, block).mean(axis=(1, 3, 5))
+        slab = slab.reshape((n // block, block, ny // block, block, nz // block, block) + tail).mean(axis=(1, 3, 5))
         out[x0 // block:x0 // block + len(slab)] = slab
     return out
 
@@ -149,7 +170,7 @@ def volume_grids(obj, matrix_world, files, warn):
     shader = _shader(obj, warn)
     if shader is None:
         return []
-    scaled, constant, names, blackbody = shader
+    scaled, constant, names, blackbody, colors = shader
     if any(m.show_render for m in getattr(obj.original, "modifiers", ())):
         warn(f"{label}: modifiers are not applied (the file's grids render)")
     try:
@@ -200,7 +221,29 @@ def volume_grids(obj, matrix_world, files, warn):
     arr, to_index = placed
     if mask:
         arr = (arr > 0).astype(np.float32)
-    return [GridMedium(arr, to_index, coefficients(scaled), coefficients(constant), name=obj.name)] + out
+    medium = GridMedium(arr, to_index, coefficients(scaled), coefficients(constant), name=obj.name)
+    for grid_name, base, factor, absorb, g in colors[:1] if not mask else ():
+        tint = _colour_voxels(files, path, bgrids.get(grid_name), bgrids[name], arr.shape, label, warn)
+        if tint is not None:
+            medium.color = (tint, base, factor, absorb, g)
+    return [medium] + out
+
+
+def _colour_voxels(files, path, colour, density, shape, label, warn):
+    """A colour grid's voxels on the density grid's (nx, ny, nz, 3), or None
+    (with a warning where the grid is there but cannot be used)."""
+    if colour is None:
+        return None
+    if colour.data_type not in ("VECTOR_FLOAT", "VECTOR_DOUBLE", "FLOAT"):
+        warn(f"{label}: grid '{colour.name}' is not a colour; Color is used")
+        return None
+    if not np.allclose(np.array(colour.matrix_object), np.array(density.matrix_object)):
+        warn(f"{label}: colour grid '{colour.name}' is not on the density's voxels; Color is used")
+        return None
+    voxels = files.read_on(path, colour.name, density.name, warn)
+    if voxels is None or voxels.shape[:3] != tuple(shape):
+        return None
+    return voxels if voxels.ndim == 4 else np.repeat(voxels[..., None], 3, axis=-1)
 
 
 def _placed(files, path, grid, matrix_world, label, warn):

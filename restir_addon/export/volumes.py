@@ -17,8 +17,11 @@ Inputs are read as the constants they hold: an input fed by a link
 warning (heterogeneous media are not rendered). A volume object's grids
 are the exception (export/volume_objects.py): there a Principled Volume's
 Density Attribute, or an Attribute node feeding a Density, names the grid
-that scales the density (read with ``grids``).
+that scales the density, its Color Attribute a grid that tints it and its
+Temperature Attribute one that drives its blackbody (read with ``grids``).
 """
+
+from collections import namedtuple
 
 import numpy as np
 
@@ -44,18 +47,24 @@ def _source(socket):
 
 
 class _Reader:
-    def __init__(self, warn, grids=None):
+    def __init__(self, warn, grids=None, unit_density=False):
         self.warn = warn
+        self.unit_density = unit_density    # Density inputs read as 1 (a texture drives them)
         self.grids = grids      # a list: grid names that scale densities are put in it
         # With grids: (temperature grid name, Temperature, Blackbody
         # Intensity, Blackbody Tint) of each Principled Volume's blackbody,
         # left out of the emission for the grid to give it.
         self.blackbody = []
+        # With grids: (colour grid name, Color, Density, 1 - sqrt(Absorption
+        # Color), Anisotropy) of each Principled Volume with a Color Attribute.
+        self.colors = []
 
     def value(self, node, name, default):
         socket = node.inputs.get(name)
         if socket is None:
             return np.asarray(default, np.float64)
+        if self.unit_density and name == "Density":
+            return np.asarray(1.0, np.float64)
         if socket.is_linked:
             src = _source(socket)
             if self.grids is not None and name == "Density" and src is not None and src.node.type == "ATTRIBUTE":
@@ -106,13 +115,13 @@ class _Reader:
             attribute = node.inputs.get("Density Attribute")
             if self.grids is not None and attribute is not None and getattr(attribute, "default_value", ""):
                 self.grids.append(str(attribute.default_value))
-            colour = node.inputs.get("Color Attribute")
-            if self.grids is not None and colour is not None and getattr(colour, "default_value", ""):
-                self.warn(f"node '{node.name}': the colour grid '{colour.default_value}' is not rendered "
-                          "(Color is used)")
             color = np.clip(self.color(node, "Color", (0.5, 0.5, 0.5)), 0, None)
             absorb = np.clip(self.color(node, "Absorption Color", (0, 0, 0)), 0, None)
             g = float(np.clip(self.number(node, "Anisotropy", 0.0), -0.999, 0.999))
+            colour = node.inputs.get("Color Attribute")
+            if self.grids is not None and colour is not None and getattr(colour, "default_value", ""):
+                self.colors.append((str(colour.default_value), tuple(float(x) for x in color), density,
+                                    tuple(float(x) for x in np.clip(1.0 - np.sqrt(absorb), 0, None)), g))
             ss = color * density
             # (Cycles takes the square root of the Absorption Color.)
             sa = np.clip(1.0 - color, 0, None) * np.clip(1.0 - np.sqrt(absorb), 0, None) * density
@@ -149,24 +158,43 @@ def _medium(sa, ss, em, gs):
             "emission": tuple(float(x) for x in em), "g": float(np.clip(g, -0.999, 0.999))}
 
 
-def read_volume(socket, warn):
+def textured_density(socket):
+    """The Density input of the one volume node feeding a Volume socket when
+    nodes other than an Attribute drive it (a texture, math), else None."""
+    out = _source(socket)
+    if out is None or out.node.type not in ("PRINCIPLED_VOLUME", "VOLUME_SCATTER", "VOLUME_ABSORPTION"):
+        return None
+    density = out.node.inputs.get("Density")
+    src = _source(density) if density is not None else None
+    if src is None or src.node.type == "ATTRIBUTE":
+        return None
+    return density
+
+
+def read_volume(socket, warn, unit_density=False):
     """The medium dict of a Volume socket (core/integrators/media.py), or None if it
-    gives none."""
-    sa, ss, em, gs = _Reader(warn).closure(socket)
+    gives none. unit_density: per unit of a density a texture gives."""
+    sa, ss, em, gs = _Reader(warn, unit_density=unit_density).closure(socket)
     if not (np.max(sa) > 0 or np.max(ss) > 0 or np.max(em) > 0):
         return None
     return _medium(sa, ss, em, gs)
 
 
+GridShader = namedtuple("GridShader", "scaled constant names blackbody colors")
+
+
 def read_grid_volume(socket, warn):
-    """A volume object's shader: (medium dict of absorption and scattering per
-    unit of the grid, medium dict of emission, names of the grids that scale
-    the density, the blackbodies that a temperature grid drives: _Reader's). Without a grid name the whole medium is constant inside
+    """A volume object's shader, a GridShader: the medium dict of absorption
+    and scattering per unit of the grid, the medium dict of emission, the
+    names of the grids that scale the density, and _Reader's blackbodies and
+    colour grids. Without a grid name the whole medium is constant inside
     the volume (the second dict holds it all), as Cycles fills a volume
     object's bounds when no grid drives the density."""
     grids = []
     reader = _Reader(warn, grids)
     sa, ss, em, gs = reader.closure(socket)
     if grids:
-        return _medium(sa, ss, ZERO, gs), _medium(ZERO, ZERO, em, 0.0), grids, reader.blackbody
-    return _medium(ZERO, ZERO, ZERO, 0.0), _medium(sa, ss, em, gs), grids, reader.blackbody
+        return GridShader(_medium(sa, ss, ZERO, gs), _medium(ZERO, ZERO, em, 0.0), grids, reader.blackbody,
+                          reader.colors)
+    return GridShader(_medium(ZERO, ZERO, ZERO, 0.0), _medium(sa, ss, em, gs), grids, reader.blackbody,
+                      reader.colors)

@@ -224,7 +224,8 @@ class SceneReader:
             changes["lights"] = Lights.from_list(light_rows)
         # Grids: the arrays are GridFiles' own while their files are unchanged.
         signature = [(id(g.density), g.to_index.tobytes(), g.scaled.tobytes(), g.constant.tobytes(),
-                      repr(g.blackbody)) for g in grids]
+                      repr(g.blackbody), None if g.color is None else (id(g.color[0]), repr(g.color[1:])))
+                     for g in grids]
         if signature != getattr(self, "_grid_signature", None):
             self._grid_signature = signature
             changes["volumes"] = grids

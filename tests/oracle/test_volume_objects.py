@@ -10,26 +10,29 @@ engines at 64 spp. Mean within 2 % and block chi < 2.5, as the node tests.
 import numpy as np
 import pytest
 
-from support.volume_scenes import lumpy_ball, smoke_material, stage, volume_object, write_vdb
+from support.volume_scenes import colour_waves, lumpy_ball, smoke_material, stage, volume_object, write_vdb
 
 SAMPLES = 64
 BOUNCES = 3
 
 
 @pytest.mark.parametrize("case", ["principled", "attribute_scatter", "emission", "no_material", "fire",
-                                  "fire_without_grid"])
+                                  "fire_without_grid", "color"])
 def test_vdb_matches_cycles(addon, tmp_path, case):
     """A lumpy ball of smoke from a .vdb file: its shading, its shadow on
     the floor and (with emission) the glow that fills its box as in Cycles;
     without a material both engines use their default volume shader. Fire:
     a blackbody whose temperature grid (a smaller ball, up to 1.2 x the
     Temperature of 1500 K) makes it glow, or without that grid the Temperature
-    everywhere in the box."""
+    everywhere in the box. Colour: a colour grid on the density's voxels
+    tints scattering and absorption."""
     from support.blender_util import compare_with_cycles
     scene = stage()
     grids = {"density": lumpy_ball()}
     if case == "fire":
         grids["temperature"] = np.clip(lumpy_ball() / 2.5, 0, 1.2)
+    if case == "color":
+        grids["color"] = colour_waves()
     path = write_vdb(tmp_path / "ball.vdb", grids)
     volume_object(path, material=None if case == "no_material" else smoke_material(case)[0])
     r = compare_with_cycles(scene, SAMPLES, BOUNCES, block=8)

@@ -159,10 +159,63 @@ def test_volume_can_fail(addon):
     assert np.abs(ours - cycles).mean() > 0.01
 
 
+def _noise_density(mat, node, scale=3.0):
+    """Density = 4 x (Noise Texture's Fac - 0.45), on Generated coordinates."""
+    tree = mat.node_tree
+    noise = tree.nodes.new("ShaderNodeTexNoise")
+    noise.inputs["Scale"].default_value = scale
+    noise.inputs["Detail"].default_value = 1.0
+    sub = tree.nodes.new("ShaderNodeMath")
+    sub.operation, sub.inputs[1].default_value = "SUBTRACT", 0.45
+    mul = tree.nodes.new("ShaderNodeMath")
+    mul.operation, mul.inputs[1].default_value = "MULTIPLY", 4.0
+    tree.links.new(noise.outputs["Fac"], sub.inputs[0])
+    tree.links.new(sub.outputs[0], mul.inputs[0])
+    tree.links.new(mul.outputs[0], node.inputs["Density"])
+    return noise
+
+
+@pytest.mark.parametrize("shape", ["box", "sphere"])
+def test_textured_density_matches_cycles(addon, shape):
+    """A Noise Texture drives a Principled Volume's Density inside a box and
+    inside a sphere (core/integrators/field_media.py: the texture on a
+    lattice, inside the mesh): the clouds' shapes and shadows as Cycles'."""
+    import bpy
+    scene = _stage()
+    mat, node = _volume_material("cloud", "ShaderNodeVolumePrincipled", Color=(0.8, 0.7, 0.6, 1))
+    _noise_density(mat, node, scale=3.0 if shape == "box" else 5.0)
+    if shape == "box":
+        _box("Cloud", (-1.0, -1.0, 0.02), (1.0, 1.0, 2.0), mat)
+    else:
+        bpy.ops.mesh.primitive_uv_sphere_add(radius=1.0, location=(0, 0, 1.0), segments=32, ring_count=16)
+        bpy.context.object.data.materials.append(mat)
+    _compare(scene, f"textured density, {shape}")
+
+
+def test_textured_density_can_fail(addon):
+    """The comparison fails when the texture is off: a Noise Texture of
+    scale 4 against Cycles' 3 moves the clouds: the block error is several
+    times that of the same texture (the noise of the two renders)."""
+    from support.blender_util import block_means, render_image, setup_cycles, setup_restir
+    scene = _stage()
+    mat, node = _volume_material("cloud", "ShaderNodeVolumePrincipled")
+    noise = _noise_density(mat, node)
+    _box("Cloud", (-1.0, -1.0, 0.02), (1.0, 1.0, 2.0), mat)
+    setup_cycles(scene, SAMPLES, 1, BOUNCES)
+    cycles = block_means(render_image(scene), 8)
+    setup_restir(scene, SAMPLES, 1, BOUNCES)
+    same = np.abs(block_means(render_image(scene), 8) - cycles).mean()
+    noise.inputs["Scale"].default_value = 4.0
+    moved = np.abs(block_means(render_image(scene), 8) - cycles).mean()
+    print(f"block error: same texture {same:.4f}, scale 4 for 3 {moved:.4f}")
+    assert moved > 3 * same
+
+
 def test_volume_bad_input(addon, reports, tmp_path):
     """An empty volume object, a volume of density zero, an open surface
-    with a volume material and a textured density: valid images, no NaN,
-    warnings that name what is not rendered."""
+    with a volume material, a textured colour and a density of 1 / 0 from
+    a Math node: valid images, no NaN, warnings that name what is not
+    rendered."""
     import bpy
     from support.addon_util import add_mesh, render_exr
     from restir_gi.core.camera.film import read_exr
@@ -176,8 +229,13 @@ def test_volume_bad_input(addon, reports, tmp_path):
              mat=sheet)
     tex, node = _volume_material("textured", "ShaderNodeVolumePrincipled")
     noise = tex.node_tree.nodes.new("ShaderNodeTexNoise")
-    tex.node_tree.links.new(noise.outputs["Fac"], node.inputs["Density"])
+    tex.node_tree.links.new(noise.outputs["Fac"], node.inputs["Color"])
     _box("Cloud", (1.5, -1, 0), (2.5, 0, 1), tex)
+    inf, node = _volume_material("infinite", "ShaderNodeVolumeScatter")
+    div = inf.node_tree.nodes.new("ShaderNodeMath")
+    div.operation, div.inputs[0].default_value, div.inputs[1].default_value = "DIVIDE", 1.0, 0.0
+    inf.node_tree.links.new(div.outputs[0], node.inputs["Density"])
+    _box("Infinite", (-2.5, -1, 0), (-1.5, 0, 1), inf)
     for mode in ("PATH", "RESTIR_BIASED"):
         scene.restir_gi.mode = mode
         reports.log.clear()
@@ -187,7 +245,7 @@ def test_volume_bad_input(addon, reports, tmp_path):
         warnings = reports.of("WARNING")
         assert reports.of("ERROR") == []
         assert any("'Smoke': no volume file" in w for w in warnings), reports.log
-        assert any("heterogeneous" in w and "Density" in w for w in warnings), reports.log
+        assert any("heterogeneous" in w and "Color" in w for w in warnings), reports.log
         if mode != "PATH":
             assert any("by Path Tracing" in w for w in warnings), reports.log
 

@@ -19,6 +19,14 @@ def lumpy_ball(n=N):
     return (3.0 * np.clip(1 - r, 0, None) ** 1.5 * (1 + 0.5 * np.sin(6 * X) * np.cos(5 * Y))).astype(np.float32)
 
 
+def colour_waves(n=N):
+    """(n, n, n, 3) float32 colours: red rising along x, green falling,
+    blue waving along z."""
+    x = np.linspace(0.0, 1.0, n)
+    X, _, Z = np.meshgrid(x, x, x, indexing="ij")
+    return np.stack([X, 1.0 - X, 0.5 + 0.5 * np.sin(6 * Z)], axis=-1).astype(np.float32)
+
+
 def write_vdb(path, grids, voxel=2.0 / N):
     """Write {name: array} as one .vdb file: (n, n, n) arrays as float grids,
     (n, n, n, 3) ones as vector grids, voxel (0, 0, 0) at the origin."""
@@ -67,7 +75,7 @@ def volume_object(path, name="Smoke", material=None):
 
 def smoke_material(case):
     """A volume material: the Principled Volume of the case (with a
-    blackbody for "fire"), or a Volume Scatter whose Density an Attribute
+    blackbody for "fire", a colour grid for "color"), or a Volume Scatter whose Density an Attribute
     node feeds ("attribute_scatter")."""
     import bpy
     mat = bpy.data.materials.new(case)
@@ -88,6 +96,10 @@ def smoke_material(case):
         if case == "emission":
             node.inputs["Emission Strength"].default_value = 0.5
             node.inputs["Emission Color"].default_value = (1.0, 0.5, 0.2, 1)
+        if case == "color":
+            node.inputs["Color Attribute"].default_value = "color"
+            node.inputs["Color"].default_value = (0.9, 0.9, 0.9, 1)
+            node.inputs["Absorption Color"].default_value = (0.2, 0.3, 0.1, 1)
         if case in ("fire", "fire_without_grid"):
             node.inputs["Blackbody Intensity"].default_value = 1.0
             node.inputs["Temperature"].default_value = 1500.0

@@ -263,3 +263,44 @@ class WorldGeometry:
 
     def offset(self, dp):
         return WorldGeometry(self.d + dp, self.camera_ray)
+
+
+class VolumeGeometry(SurfaceGeometry):
+    """Inputs of a volume shader at points p (N, 3) inside one object (Cycles'
+    volume shading): the position, object space and Generated coordinates
+    (the object's bounds, ``box`` (lo, hi) in object space, mapped to
+    [0, 1]^3, as a mesh's automatic texture space); no normal, UV or
+    attribute (zero), as no surface is there."""
+
+    def __init__(self, scene, points, object_id, box):
+        self.scene = scene
+        self.surf = None
+        self.n = len(points)
+        self.camera_ray = False
+        self.shadow_ray = False
+        self._cache = {}
+        self._p = np.asarray(points, np.float32)
+        self._oid = np.full(self.n, int(object_id), np.int64)
+        self._box = (np.asarray(box[0], np.float32), np.asarray(box[1], np.float32))
+
+    position = property(lambda self: self._p)
+    normal = property(lambda self: np.zeros((self.n, 3), np.float32))
+    true_normal = normal
+    incoming = normal
+    backfacing = property(lambda self: np.zeros(self.n, np.float32))
+    object_id = property(lambda self: self._oid)
+
+    def corner(self, key, width):
+        return np.zeros((self.n, width), np.float32)
+
+    def uv(self, name=""):
+        return np.zeros((self.n, 3), np.float32)
+
+    @property
+    def generated(self):
+        lo, hi = self._box
+        size = np.where(hi - lo > 0, hi - lo, 1.0)
+        return ((self.object_coords - lo) / size).astype(np.float32)
+
+    def offset(self, dp):
+        return VolumeGeometry(self.scene, self._p + dp, self._oid[0] if self.n else 0, self._box)

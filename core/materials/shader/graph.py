@@ -60,6 +60,10 @@ class ShaderGraph:
     # The homogeneous medium of the Volume socket (core/integrators/media.py:
     # sigma_a, sigma_s, emission, g), None without one.
     volume: dict = None
+    # Where a texture drives that medium's density (core/integrators/
+    # field_media.py): the Density input's nodes as a graph whose output is
+    # the density, ``volume`` then per unit of it; None: constant.
+    volume_field: "ShaderGraph" = None
 
     def add(self, node):
         self.nodes.append(node)

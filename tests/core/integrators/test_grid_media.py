@@ -179,3 +179,21 @@ def test07_a_temperature_grid_glows_as_a_blackbody():
     assert per_length[0] > 0.1
     assert (em >= per_length * 2.0 - 1e-6).all() and (em <= per_length * (2.0 + voxel) + 1e-6).all()
     assert np.allclose(media.along(o, d, np.array([np.inf])).transmittance(), 1.0)    # it absorbs nothing
+
+
+def test08_a_colour_grid_tints_scattering_and_absorption():
+    """A Principled Volume's colour grid: the scattering colour is Color x
+    the grid's, absorption (1 - that) x (1 - sqrt(Absorption Color)), both
+    times the density (a segment inside the grid, clear of the fall to zero
+    past its last voxels, where density and colour both fall)."""
+    n, dens, factor = 8, 1.5, 2.0
+    base, absorb = np.array([0.8, 0.6, 0.4]), np.array([0.5, 0.7, 0.9])
+    o, d = _rays((-0.5, 0.0, 0.0))
+    length = 1.0
+    for colour in ((1.0, 1.0, 1.0), (0.5, 1.0, 0.25)):
+        g = _grid(np.full((n, n, n), dens))
+        g.color = (np.broadcast_to(np.float32(colour), (n, n, n, 3)).copy(), base, factor, absorb, 0.2)
+        tr = _media(g).along(o, d, np.array([length])).transmittance()[0]
+        scatter = base * np.array(colour)
+        sigma_t = (scatter + (1 - scatter) * absorb) * factor * dens
+        np.testing.assert_allclose(tr, np.exp(-sigma_t * length), rtol=1e-4)
