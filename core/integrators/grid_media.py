@@ -10,7 +10,10 @@ not scale by the density). Between voxel centres the density is trilinear, as
 Cycles samples grids, and it falls to zero one voxel past the grid's box.
 The box is the voxels' cells grown by half a voxel each side, as Cycles'
 mesh around a volume's voxels (matched on an emitting grid: without the
-margin 3.4 % dark, with a whole voxel 2.9 % bright).
+margin 3.4 % dark, with a whole voxel 2.9 % bright). Two Principled Volume
+grids change what a step holds: a colour grid on the density's voxels
+tints scattering and absorption, and a temperature grid (a GridMedium of
+its own) emits the blackbody of its temperature (blackbody_emission).
 
 Along a ray a grid is marched as Cycles marched volumes before its null
 scattering: the span of the ray inside the grid's box is cut into steps of
