@@ -9,7 +9,7 @@ from ...core.materials.shading import shading
 from .camera import export_camera, render_size
 from .lights import is_supported, light_row
 from .materials import MaterialTable
-from .mesh import (GEOMETRY_TYPES, SWAP, hair_warning, in_edit_mode, mirrors, place, placed_triangles,
+from .mesh import (GEOMETRY_TYPES, SWAP, base_mesh, hair_warning, in_edit_mode, mirrors, place, placed_triangles,
                    read_corner_data, read_mesh, unrendered)
 from .strands import STRAND_TYPES, has_particle_hair, pad_corners, read_strands, with_particle_hair
 from .object_attributes import attribute_tables, object_attributes, split_needs
@@ -55,7 +55,7 @@ def _object_mesh(obj, cache, keys, warn):
         entry = cache[key]
         emitter = not hair or getattr(obj, "show_instancer_for_render", True)
         if entry is not None and emitter and not keys <= set(entry[1]):
-            entry[1].update(read_corner_data(obj.data, keys - set(entry[1]), warn, obj.name))
+            entry[1].update(read_corner_data(obj.data, keys - set(entry[1]), warn, obj.name, base_mesh(obj)))
         if hair and entry is not None:
             return entry[0], pad_corners(entry[1], entry[0])
         return entry
@@ -69,7 +69,7 @@ def _object_mesh(obj, cache, keys, warn):
         if me is not None:
             entry = _read(me, obj.name, warn)
             if entry is not None:
-                entry[1].update(read_corner_data(me, keys, warn, obj.name))
+                entry[1].update(read_corner_data(me, keys, warn, obj.name, base_mesh(obj)))
             cache[key] = entry
             obj.to_mesh_clear()
         text = hair_warning(obj, None if cache[key] is None else cache[key][0])

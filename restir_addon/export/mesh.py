@@ -97,6 +97,14 @@ def read_mesh(me):
                     slots.astype(np.int32, copy=False))
 
 
+def base_mesh(obj):
+    """The mesh an evaluated mesh object was made from (its Generated
+    coordinates' source), or None."""
+    orig = getattr(obj, "original", None)
+    data = getattr(orig, "data", None)
+    return data if getattr(orig, "type", None) == "MESH" else None
+
+
 def _render_uv_layer(me):
     """The UV map Cycles reads by default: the one active for rendering."""
     for layer in me.uv_layers:
@@ -105,11 +113,12 @@ def _render_uv_layer(me):
     return me.uv_layers.active
 
 
-def read_corner_data(me, keys, warn, name=""):
+def read_corner_data(me, keys, warn, name="", base=None):
     """Corner data the materials' nodes read (core/materials/shader/geometry.py keys):
     ``uv:<map>`` (T, 3, 2), ``color:<attribute>`` (T, 3, 4), ``tangent:<map>``
-    (T, 3, 4: tangent and bitangent sign), ``generated`` (T, 3, 3). A map or
-    attribute the mesh lacks reads as zeros, with a warning."""
+    (T, 3, 4: tangent and bitangent sign), ``generated`` (T, 3, 3; ``base``:
+    the object's mesh before evaluation, see _generated). A map or attribute
+    the mesh lacks reads as zeros, with a warning."""
     tris = me.loop_triangles
     nt, nl = len(tris), len(me.loops)
     out = {}
@@ -131,7 +140,7 @@ def read_corner_data(me, keys, warn, name=""):
         elif kind == "tangent":
             out[key] = _tangents(me, arg, loops, warn, name)
         elif key == "generated":
-            out[key] = _generated(me, loops)
+            out[key] = _generated(me, loops, base)
     return out
 
 
@@ -182,12 +191,17 @@ def _tangents(me, uv_name, loops, warn, name):
     return np.concatenate([t, sign[:, None]], axis=1)[loops]
 
 
-def _generated(me, loops):
-    """Blender's Generated coordinates: positions in the mesh's texture space, [0, 1]^3."""
+def _generated(me, loops, base=None):
+    """Blender's Generated coordinates: positions in the mesh's texture space,
+    [0, 1]^3. As Blender's original coordinates they are the mesh's before
+    its deformation (an armature's pose, shape keys, deforming modifiers):
+    ``base``'s (the object's own mesh) positions and texture space where it
+    has as many vertices as the evaluated one, else the evaluated mesh's."""
     nv = len(me.vertices)
-    pos = _get(me.attributes["position"].data, "vector", np.float32, 3, nv)
-    loc = np.asarray(me.texspace_location, np.float32)
-    size = np.asarray(me.texspace_size, np.float32)
+    source = base if base is not None and len(getattr(base, "vertices", ())) == nv else me
+    pos = _get(source.attributes["position"].data, "vector", np.float32, 3, nv)
+    loc = np.asarray(source.texspace_location, np.float32)
+    size = np.asarray(source.texspace_size, np.float32)
     size = np.where(np.abs(size) > 1e-12, size, 1.0)
     orco = (pos - loc) / size * 0.5 + 0.5
     corner_vert = _get(me.attributes[".corner_vert"].data, "value", np.int32, 1, len(me.loops))

@@ -356,6 +356,8 @@ class _Translator:
         elif kind == "TANGENT":
             needs.update((f"uv:{node.uv_map}", f"tangent:{node.uv_map}") if node.direction_type == "UV_MAP"
                          else ("generated",))
+        elif kind == "NEW_GEOMETRY":
+            needs.add("generated")          # its Tangent (nodes_input.radial_tangent)
         elif kind == "VERTEX_COLOR":
             needs.add(f"color:{node.layer_name}")
         elif kind == "ATTRIBUTE" and node.attribute_type == "GEOMETRY":

@@ -14,7 +14,7 @@ import numpy as np
 from ...core.scene import Camera
 from ..export.camera import depth_of_field
 from ..export.mesh import (
-    MeshData, hair_warning, in_edit_mode, mirrors, place, placed_triangles, read_corner_data, read_mesh,
+    MeshData, base_mesh, hair_warning, in_edit_mode, mirrors, place, placed_triangles, read_corner_data, read_mesh,
     triangle_cross, unit_rows)
 from ..export.strands import STRAND_TYPES, read_strands, with_particle_hair
 
@@ -80,7 +80,7 @@ def _read_object_geometry(obj, keys, warn):
         except KeyError:            # loose geometry without positions
             return None
         if keys:
-            mesh.corners = read_corner_data(me, set(keys), warn or (lambda text: None), obj.name)
+            mesh.corners = read_corner_data(me, set(keys), warn or (lambda text: None), obj.name, base_mesh(obj))
         return _clean_mesh(mesh, warn, obj.name)
 
     if obj.type == "MESH" and not in_edit_mode(obj.data):

@@ -57,10 +57,21 @@ def uv_map(inp, geom, n, sh):
     return {"UV": geom.uv(n.props.get("uv_map", ""))}
 
 
+def radial_tangent(geom):
+    """Cycles' tangent without a UV map (the Geometry node's Tangent): around
+    the object's Z axis through the centre of its Generated coordinates,
+    made perpendicular to the shading normal."""
+    g = geom.generated
+    data = np.stack([-(g[:, 1] - 0.5), g[:, 0] - 0.5, np.zeros(geom.n, np.float32)], axis=1).astype(np.float32)
+    data = geom.object_vector_to_world(data) if not geom.is_world else data
+    nrm = geom.normal
+    return _norm(_cross(nrm, _norm(_cross(data, nrm))))
+
+
 @varying
 @node("NEW_GEOMETRY")
 def geometry(inp, geom, n, sh):
-    t, _ = geom.tangent("")
+    t = radial_tangent(geom)
     return {"Position": geom.position, "Normal": geom.normal, "Tangent": t,
             "True Normal": geom.true_normal, "Incoming": geom.incoming,
             "Parametric": geom.uv("") * 0, "Backfacing": geom.backfacing,

@@ -1,0 +1,93 @@
+"""Texture coordinates Cycles derives from the object, against Cycles pixel by
+pixel: each case an emitter whose colour is the coordinate (x 0.5 + 0.5),
+seen by an orthographic camera, so every pixel is the coordinate itself and
+only anti-aliasing noise at the silhouette differs.
+
+- The Geometry node's Tangent: Cycles' radial tangent around the object's Z
+  axis through the centre of its Generated coordinates (without it, the UV
+  tangent: godot-blender-exporter's material_geometry.blend was 0.61x).
+- Generated coordinates of a deformed mesh: those of the mesh before its
+  deformation (a shape key here; an armature's pose in
+  material_generated_tex_coord.blend, 1.20x before).
+"""
+
+import math
+
+import numpy as np
+import pytest
+
+SPP = 16
+
+
+def _emitter(name, output):
+    """A material emitting ``output(tree)`` x 0.5 + 0.5."""
+    import bpy
+    mat = bpy.data.materials.new(name)
+    tree = mat.node_tree
+    tree.nodes.clear()
+    out, emit = tree.nodes.new("ShaderNodeOutputMaterial"), tree.nodes.new("ShaderNodeEmission")
+    scale = tree.nodes.new("ShaderNodeVectorMath")
+    scale.operation = "MULTIPLY_ADD"
+    scale.inputs[1].default_value = (0.5, 0.5, 0.5)
+    scale.inputs[2].default_value = (0.5, 0.5, 0.5)
+    tree.links.new(output(tree), scale.inputs[0])
+    tree.links.new(scale.outputs[0], emit.inputs["Color"])
+    tree.links.new(emit.outputs[0], out.inputs["Surface"])
+    return mat
+
+
+def _tangent(tree):
+    return tree.nodes.new("ShaderNodeNewGeometry").outputs["Tangent"]
+
+
+def _generated(tree):
+    return tree.nodes.new("ShaderNodeTexCoord").outputs["Generated"]
+
+
+def _sphere(mat):
+    import bpy
+    bpy.ops.mesh.primitive_uv_sphere_add(radius=1.5, segments=48, ring_count=24, location=(0.2, 0.0, 0.0),
+                                         rotation=(0.4, 0.3, 0.2))
+    ob = bpy.context.object
+    bpy.ops.object.shade_smooth()
+    ob.data.materials.append(mat)
+    ob.scale = (1.0, 1.3, 0.9)
+
+
+def _shape_keyed_cube(mat):
+    """A cube whose only shape key, at full value, shears and stretches it:
+    its Generated coordinates stay those of the cube."""
+    import bpy
+    bpy.ops.mesh.primitive_cube_add(size=2.0, rotation=(0.5, 0.4, 0.3))
+    ob = bpy.context.object
+    ob.data.materials.append(mat)
+    ob.shape_key_add(name="Basis")
+    key = ob.shape_key_add(name="Shear")
+    for point in key.data:
+        x, y, z = point.co
+        point.co = (x * 0.8 + 0.5 * z, y * 1.2, z + 0.3 * x)
+    key.value = 1.0
+
+
+CASES = {"geometry_tangent": (_tangent, _sphere), "generated_of_a_deformed_mesh": (_generated, _shape_keyed_cube)}
+
+
+@pytest.mark.parametrize("case", list(CASES))
+def test_coordinate_matches_cycles(addon, case):
+    from support.addon_util import camera, fresh, world
+    from support.blender_util import render_image, setup_cycles, setup_restir
+    output, shape = CASES[case]
+    scene = fresh(96, 96, samples=SPP)
+    world((0, 0, 0))
+    camera(location=(0, 0, 6), rotation=(0, 0, math.radians(10)), type="ORTHO", ortho_scale=5.0)
+    shape(_emitter(case, output))
+    images = {}
+    for name, setup, seed in (("ours", setup_restir, 1), ("ours2", setup_restir, 2),
+                              ("cycles", setup_cycles, 1), ("cycles2", setup_cycles, 2)):
+        setup(scene, SPP, seed, 1)
+        images[name] = render_image(scene)
+    diff = np.abs((images["ours"] + images["ours2"]) - (images["cycles"] + images["cycles2"])) / 2
+    noise = np.hypot(images["ours"] - images["ours2"], images["cycles"] - images["cycles2"]) / 2
+    assert images["cycles"].std() > 0.05
+    print(f"{case}: mean |ours - cycles| {diff.mean():.4f}, noise {noise.mean():.4f}")
+    assert diff.mean() < 1.5 * noise.mean() + 2e-3, (diff.mean(), noise.mean())
