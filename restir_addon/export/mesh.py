@@ -199,7 +199,14 @@ def _generated(me, loops, base=None):
     has as many vertices as the evaluated one, else the evaluated mesh's."""
     nv = len(me.vertices)
     source = base if base is not None and len(getattr(base, "vertices", ())) == nv else me
-    pos = _get(source.attributes["position"].data, "vector", np.float32, 3, nv)
+    pos = None
+    if source is not me:
+        try:        # (an original mesh may not hold its positions as an attribute)
+            pos = _get(source.vertices, "co", np.float32, 3, nv)
+        except (AttributeError, RuntimeError, TypeError):
+            source = me
+    if pos is None:
+        pos = _get(me.attributes["position"].data, "vector", np.float32, 3, nv)
     loc = np.asarray(source.texspace_location, np.float32)
     size = np.asarray(source.texspace_size, np.float32)
     size = np.where(np.abs(size) > 1e-12, size, 1.0)
