@@ -146,17 +146,14 @@ def test_moved_volume_follows(addon):
 def test_volume_can_fail(addon):
     """The comparison fails when the medium is off: twice the density here
     against Cycles' is far outside the tolerance."""
-    from support.blender_util import block_means, render_image, setup_cycles, setup_restir
+    from support.blender_util import block_error_after_change
     scene = _stage()
     mat, node = _volume_material("fog", "ShaderNodeVolumeScatter", Density=1.0)
     _box("Fog", (-1.0, -1.0, 0.02), (1.0, 1.0, 2.0), mat)
-    setup_cycles(scene, SAMPLES, 1, BOUNCES)
-    cycles = block_means(render_image(scene), 8)
-    node.inputs["Density"].default_value = 2.0
-    setup_restir(scene, SAMPLES, 1, BOUNCES)
-    ours = block_means(render_image(scene), 8)
-    print(f"density x2: block error {np.abs(ours - cycles).mean():.4f}")
-    assert np.abs(ours - cycles).mean() > 0.01
+    error = block_error_after_change(scene, lambda: setattr(node.inputs["Density"], "default_value", 2.0),
+                                     SAMPLES, BOUNCES)
+    print(f"density x2: block error {error:.4f}")
+    assert error > 0.01
 
 
 def _noise_density(mat, node, scale=3.0):
@@ -196,17 +193,13 @@ def test_textured_density_can_fail(addon):
     """The comparison fails when the texture is off: a Noise Texture of
     scale 4 against Cycles' 3 moves the clouds: the block error is several
     times that of the same texture (the noise of the two renders)."""
-    from support.blender_util import block_means, render_image, setup_cycles, setup_restir
+    from support.blender_util import block_error_after_change
     scene = _stage()
     mat, node = _volume_material("cloud", "ShaderNodeVolumePrincipled")
     noise = _noise_density(mat, node)
     _box("Cloud", (-1.0, -1.0, 0.02), (1.0, 1.0, 2.0), mat)
-    setup_cycles(scene, SAMPLES, 1, BOUNCES)
-    cycles = block_means(render_image(scene), 8)
-    setup_restir(scene, SAMPLES, 1, BOUNCES)
-    same = np.abs(block_means(render_image(scene), 8) - cycles).mean()
-    noise.inputs["Scale"].default_value = 4.0
-    moved = np.abs(block_means(render_image(scene), 8) - cycles).mean()
+    same, moved = block_error_after_change(
+        scene, lambda: lambda: setattr(noise.inputs["Scale"], "default_value", 4.0), SAMPLES, BOUNCES)
     print(f"block error: same texture {same:.4f}, scale 4 for 3 {moved:.4f}")
     assert moved > 3 * same
 
@@ -304,17 +297,14 @@ def test_world_volume_with_a_fog_box(addon):
 
 def test_world_volume_can_fail(addon):
     """Without the world's medium the image is far from Cycles' with it."""
-    from support.blender_util import block_means, render_image, setup_cycles, setup_restir
+    from support.blender_util import block_error_after_change
     scene = _stage()
     _lamp()
     node = _world_volume("ShaderNodeVolumeScatter", Density=0.12)
-    setup_cycles(scene, SAMPLES, 1, BOUNCES)
-    cycles = block_means(render_image(scene), 8)
-    node.inputs["Density"].default_value = 0.0
-    setup_restir(scene, SAMPLES, 1, BOUNCES)
-    ours = block_means(render_image(scene), 8)
-    print(f"world fog left out: block error {np.abs(ours - cycles).mean():.4f}")
-    assert np.abs(ours - cycles).mean() > 0.02
+    error = block_error_after_change(scene, lambda: setattr(node.inputs["Density"], "default_value", 0.0),
+                                     SAMPLES, BOUNCES)
+    print(f"world fog left out: block error {error:.4f}")
+    assert error > 0.02
 
 
 def test_world_volume_bad_input(addon, reports, tmp_path):

@@ -150,3 +150,34 @@ class Recorder:
         """The updates seen since the last call."""
         items, self.items = self.items, []
         return items
+
+
+def block_error_after_change(scene, change, samples, bounces, block=8):
+    """Mean absolute block difference between Cycles' render of ``scene``
+    and ours after ``change()``: what a can-fail test asserts is large.
+    ``change`` may return a second change: then (error before it, after)."""
+    setup_cycles(scene, samples, 1, bounces)
+    cycles = block_means(render_image(scene), block)
+    setup_restir(scene, samples, 1, bounces)
+    more = change()
+    ours = block_means(render_image(scene), block)
+    if more is None:
+        return float(np.abs(ours - cycles).mean())
+    more()
+    moved = block_means(render_image(scene), block)
+    return float(np.abs(ours - cycles).mean()), float(np.abs(moved - cycles).mean())
+
+
+def pixel_difference(scene, samples, bounces=1):
+    """(mean |ours - Cycles|, the noise of the two engines' seeds) of pixel
+    by pixel renders, each engine's two seeds averaged: what the
+    pixel-by-pixel tests compare."""
+    images = {}
+    for name, setup, seed in (("ours", setup_restir, 1), ("ours2", setup_restir, 2),
+                              ("cycles", setup_cycles, 1), ("cycles2", setup_cycles, 2)):
+        setup(scene, samples, seed, bounces)
+        images[name] = render_image(scene)
+    assert images["cycles"].std() > 0.05                        # a pattern, not a flat colour
+    diff = np.abs((images["ours"] + images["ours2"]) - (images["cycles"] + images["cycles2"])) / 2
+    noise = np.hypot(images["ours"] - images["ours2"], images["cycles"] - images["cycles2"]) / 2
+    return float(diff.mean()), float(noise.mean())
