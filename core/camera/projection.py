@@ -26,7 +26,7 @@ def _fit(camera, width, height):
     return camera.sensor_height, float(height)
 
 
-def _frame(camera):
+def camera_frame(camera):
     """Camera position and orthonormal axes (right, up, back) in world space."""
     m = np.asarray(camera.to_world, dtype=np.float64)
     axes = m[:3, :3]
@@ -39,7 +39,7 @@ def camera_space_normals(camera, normals):
     """(N, 3) float32 world-space normals (N, 3) in Cycles' camera space, as
     its Denoising Normal pass holds them: x right, y up, z along the view
     direction (a normal facing the camera is (0, 0, -1)); zero rows stay zero."""
-    _, axes = _frame(camera)
+    _, axes = camera_frame(camera)
     m = (axes * np.array([1.0, 1.0, -1.0])).astype(np.float32)     # columns: right, up, forward
     return matmul3(np.asarray(normals, np.float32).reshape(-1, 3), m).astype(np.float32) + np.float32(0)
 
@@ -116,7 +116,7 @@ def generate_rays(camera, width, height, pixel_xy, lens_u=None, time_u=None):
     if panorama.is_panorama(camera):
         return _panorama_rays(camera, width, height, pixel_xy, lens_u)
     size, view = pixel_size(camera, width, height)
-    pos, axes = _frame(camera)
+    pos, axes = camera_frame(camera)
     x = (pixel_xy[:, 0] - 0.5 * width + camera.shift_x * view) * size
     y = (pixel_xy[:, 1] - 0.5 * height + camera.shift_y * view) * size
     n = len(pixel_xy)
@@ -172,7 +172,7 @@ def _panorama_rays(camera, width, height, pixel_xy, lens_u=None):
     """generate_rays of a panoramic camera. Depth of field as Cycles does it
     for panoramas: the lens point in the plane across each pinhole ray,
     aimed at the point focus_distance along it."""
-    pos, axes = _frame(camera)
+    pos, axes = camera_frame(camera)
     local, inside = panorama.local_directions(camera, width, height, np.asarray(pixel_xy, np.float64))
     local[~inside] = (1.0, 0.0, 0.0)
     start = np.zeros_like(local)
@@ -199,12 +199,12 @@ def project(camera, width, height, points):
     the depth is the distance (view_depth), the film position that of the
     direction, inside the lens or not."""
     if panorama.is_panorama(camera):
-        pos, axes = _frame(camera)
+        pos, axes = camera_frame(camera)
         local = matmul3(np.asarray(points, np.float64) - pos, axes)
         film = panorama.local_to_film(camera, width, height, panorama.from_camera_frame(local, camera.panorama_type))
         return film.astype(np.float32), np.linalg.norm(local, axis=1).astype(np.float32)
     size, view = pixel_size(camera, width, height)
-    pos, axes = _frame(camera)
+    pos, axes = camera_frame(camera)
     local = matmul3(np.asarray(points, np.float64) - pos, axes)
     depth = -local[:, 2]
     if camera.projection == "ORTHO":
@@ -220,7 +220,7 @@ def project(camera, width, height, points):
 def view_depth(camera, points):
     """Distance along the camera's view axis (Blender's Z/Depth pass); the
     distance from the camera for panoramic cameras, as Cycles."""
-    pos, axes = _frame(camera)
+    pos, axes = camera_frame(camera)
     if panorama.is_panorama(camera):
         return np.linalg.norm(np.asarray(points, np.float64) - pos, axis=1).astype(np.float32)
     return -matmul3(np.asarray(points, np.float64) - pos, axes[:, 2]).astype(np.float32)

@@ -12,6 +12,7 @@ smooth at that scale.
 import numpy as np
 
 from ...bsdfs.fresnel import fresnel_dielectric
+from ...camera import projection
 from .evaluate import f32, node, varying
 
 BUMP_OFFSET = 1e-4      # of the scene extent
@@ -36,12 +37,30 @@ def _surface_normal(inp, geom, name="Normal"):
     return _norm(inp.vector(name)) if inp.linked(name) else geom.normal
 
 
+def _camera_and_window(geom):
+    """Cycles' Camera coordinates (camera space: x right, y up, z the
+    distance along the view) and Window coordinates (the point's place on
+    the whole frame, [0, 1]^2, z = 0) of the hits; zero for the world's
+    shader and without a camera."""
+    zero = np.zeros((geom.n, 3), np.float32)
+    camera = getattr(getattr(geom, "scene", None), "camera", None) if not geom.is_world else None
+    if camera is None or geom.n == 0:
+        return zero, zero
+    pos, axes = projection.camera_frame(camera)
+    local = (np.asarray(geom.position, np.float64) - pos) @ axes
+    cam = (local * np.array([1.0, 1.0, -1.0])).astype(np.float32)
+    width, height = geom.scene.width, geom.scene.height
+    film, _ = projection.project(camera, width, height, geom.position)
+    window = np.stack([film[:, 0] / width, film[:, 1] / height, np.zeros(geom.n, np.float32)], axis=1)
+    return cam, np.nan_to_num(window).astype(np.float32)
+
+
 @varying
 @node("TEX_COORD")
 def texture_coordinate(inp, geom, n, sh):
+    cam, window = _camera_and_window(geom)
     out = {"Generated": geom.generated, "Normal": geom.object_vector(geom.normal), "UV": geom.uv(""),
-           "Object": geom.object_coords, "Camera": np.zeros((geom.n, 3), np.float32),
-           "Window": np.zeros((geom.n, 3), np.float32)}
+           "Object": geom.object_coords, "Camera": cam, "Window": window}
     inv = n.props.get("object_matrix_inverse")
     if inv is not None:
         m = np.asarray(inv, np.float32).reshape(4, 4)
