@@ -105,6 +105,21 @@ def pin_camera(scene, frame):
     scene.frame_set(frame)
 
 
+def pin_objects(scene, frame):
+    """Remove the animation of every object but the camera, leaving each at
+    its pose of ``frame`` (renders that stand for independent samples of
+    that frame's scene)."""
+    import bpy
+    scene.frame_set(frame)
+    poses = {ob.name: ob.matrix_world.copy() for ob in bpy.data.objects
+             if ob.animation_data is not None and ob != scene.camera}
+    for name, pose in poses.items():
+        ob = bpy.data.objects[name]
+        ob.animation_data_clear()
+        ob.matrix_world = pose
+    scene.frame_set(frame)
+
+
 def read_passes(path, names):
     """{name: (H, W, C) float32, bottom row first} of the passes ``names``
     (e.g. "Combined", "Denoising Albedo") of a multilayer EXR that Blender
@@ -126,8 +141,10 @@ def read_passes(path, names):
     return out
 
 
-def render_frames(blend, frames, setup, pin=None, log_path=None, scene_start=None, passes=None):
-    """Open ``blend``, optionally pin its camera at frame ``pin``, call
+def render_frames(blend, frames, setup, pin=None, log_path=None, scene_start=None, passes=None,
+                  hold=None):
+    """Open ``blend``, optionally pin its camera at frame ``pin`` (and with
+    ``hold`` every other animated object at that frame's pose), call
     ``setup(scene)``, and render ``frames`` (consecutive) as a user does:
     ``bpy.ops.render.render(animation=True)`` into 32-bit OpenEXR files. The
     scene's frame range becomes ``frames``, or with ``scene_start`` keeps its
@@ -156,6 +173,8 @@ def render_frames(blend, frames, setup, pin=None, log_path=None, scene_start=Non
         scene = bpy.context.scene
         if pin is not None:
             pin_camera(scene, pin)
+        if hold is not None:
+            pin_objects(scene, hold)
         setup(scene)
         if SCALE != 1.0:
             scene.render.resolution_percentage = max(1, round(scene.render.resolution_percentage * SCALE))

@@ -24,8 +24,9 @@ pose). Per scene and camera:
   its time added to the frame's; "+ denoiser", the engine's own (Render
   Properties > Sampling > Denoise, on);
 * our path tracing, 1 spp, and Cycles at 1 and 16 spp (animated seed): frames
-  ending at N with the camera held at its frame-N pose, so that every frame is an
-  independent render of the reference's view; MSE = median over the frames;
+  ending at N with the camera (and moving objects: the movers' box) held at
+  its frame-N pose, so that every frame is an independent render of the
+  reference's view; MSE = median over the frames;
 * Cycles + OIDN: Cycles with its own Denoise (OIDN, albedo and normal) at 1,
   2, 4, 8, 16 and 32 spp, frames as above.
 
@@ -89,7 +90,7 @@ from finished import AUX, CYCLES_OIDN_SPP, Curve
 from equal_time_refs import REF_SECONDS, cycles, cycles_denoised, mse, reference, report
 from equal_time_table import lag_table, table
 
-SCENES = ("room", "slit", "glossy", "courtyard", "emitters")
+SCENES = ("room", "movers", "slit", "glossy", "courtyard", "emitters")
 MODES = {"biased": "RESTIR_BIASED", "unbiased": "RESTIR_UNBIASED"}
 CAMERAS = ("still", "moving")
 PT_FRAMES = 5
@@ -236,7 +237,7 @@ def cycles_oidn_curve(blend, ref, pin, n, camera, args):
     points, rows, last = {}, [], {}
     for spp in CYCLES_OIDN_SPP:
         images, seconds, reps = render_frames(blend, list(range(n - CYCLES_FRAMES + 1, n + 1)),
-                                              cycles_denoised(spp, 1, True), pin=pin)
+                                              cycles_denoised(spp, 1, True), pin=pin, hold=n)
         report(f"Cycles + OIDN {spp} spp", reps)
         imgs = [images[f] for f in sorted(images)]
         p = {"t": frame_stats(seconds), "mse": statistics.median(mse(i, ref) for i in imgs),
@@ -288,7 +289,8 @@ def run_case(name, camera, args):
 
     # Our path tracing, 1 spp, and Cycles at 1 and 16 spp: frames ending at N.
     def series(setup, count, label):
-        images, seconds, reps = render_frames(blend, list(range(n - count + 1, n + 1)), setup, pin=pin)
+        images, seconds, reps = render_frames(blend, list(range(n - count + 1, n + 1)), setup, pin=pin,
+                                              hold=n)
         report(label, reps)
         imgs = [images[f] for f in sorted(images)]
         return imgs, frame_stats(seconds), statistics.median(mse(i, ref) for i in imgs)

@@ -4,10 +4,13 @@ Run from anywhere:
 
     .venv/bin/python example_blends/make_corpus.py [name ...]
 
-Writes ``corpus_<name>.blend`` next to this script (all five by default):
+Writes ``corpus_<name>.blend`` next to this script (all six by default):
 
 * ``room``       - the window room of ``make_examples.build_room`` (sun through
                    a 0.8 m window, blue sky), most of the view lit indirectly.
+* ``movers``     - the room with its box sliding 1 m into the sun patch over
+                   the 32 frames (turning 15 degrees): light that changes
+                   around a moving object and stays put elsewhere.
 * ``slit``       - closed 5 x 5 x 3 m room lit only by a sun through a 15 cm
                    roof slit; a thin sunlit stripe over the floor and a white
                    block, everything else indirect; dark world outside.
@@ -21,7 +24,8 @@ Writes ``corpus_<name>.blend`` next to this script (all five by default):
                    colours (Emission shader); no lights, black world.
 
 Common to all: 320x180, frames 1-32 with a linear keyframed camera move (a
-dolly of 20-40 cm and a pan of a few degrees; nothing else moves), Blender's
+dolly of 20-40 cm and a pan of a few degrees; nothing else moves but the
+movers' box), Blender's
 default pixel filter (Blackman-Harris, 1.5 px). Cycles keeps its default bounce
 limits (total 12, diffuse 4, glossy 4) but with ``sample_clamp_indirect = 0``
 and ``blur_glossy = 0`` (both default on and biased), and denoising and
@@ -91,6 +95,16 @@ def build_room():
     cam, _box = make_examples.build_room(scene)
     # As room_animated: a 30 cm dolly sideways/forward and a 4 degree pan.
     return finish(scene, cam, (0.25, 0.15, -0.05), (-1.0, 0.0, 4.0), "corpus_room.blend")
+
+
+def build_movers():
+    scene = corpus_scene("CorpusMovers")
+    cam, box = make_examples.build_room(scene)
+    # The room's box slides 1 m into the sun patch, turning 15 degrees, as in
+    # room_animated but over the corpus's 32 frames: light that changes where
+    # an object moves, and stays put elsewhere.
+    keyframe_move(box, 1, FRAMES, (0.0, -1.0, 0.0), (0.0, 0.0, 15.0))
+    return finish(scene, cam, (0.25, 0.15, -0.05), (-1.0, 0.0, 4.0), "corpus_movers.blend")
 
 
 def build_slit():
@@ -213,7 +227,7 @@ def build_emitters():
     return finish(scene, cam, (0.2, 0.2, 0.0), (0.0, 0.0, 4.0), "corpus_emitters.blend")
 
 
-BUILDERS = {"room": build_room, "slit": build_slit, "glossy": build_glossy,
+BUILDERS = {"room": build_room, "movers": build_movers, "slit": build_slit, "glossy": build_glossy,
             "courtyard": build_courtyard, "emitters": build_emitters}
 
 
