@@ -268,8 +268,11 @@ def light_range(lum_direct, valid, width, height):
     return DirectRange(lo.astype(np.float32), hi.astype(np.float32), floor)
 
 
-def restart(acc, cap=0):
-    """Forget the history (cap 0) or keep at most ``cap`` frames of it, in place."""
+def restart(acc, cap=0, light_cap=None):
+    """Forget the history (cap 0) or keep at most ``cap`` frames of it (a
+    number, or one per row), in place; the light group's at most
+    ``light_cap`` (default: cap)."""
     if acc is not None:
         np.minimum(acc.count, cap, out=acc.count)
-        np.minimum(acc.data[:, LIGHT_FRAMES], cap, out=acc.data[:, LIGHT_FRAMES])
+        light_cap = cap if light_cap is None else light_cap
+        np.minimum(acc.data[:, LIGHT_FRAMES], light_cap, out=acc.data[:, LIGHT_FRAMES])

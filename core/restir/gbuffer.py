@@ -31,6 +31,12 @@ class GBuffer:
     height: int
     offset: int = 0         # pixel index of row 0 (a part of the image: see part())
     parts: dict = dataclasses.field(default=None, repr=False)   # (start, stop) -> GBuffer
+    pixels: np.ndarray = None   # (P,) image-wide pixel index of each row, where the rows are
+                                # scattered pixels (trace_rows' ``pixels``); else offset + row
+
+    def ids(self, rows):
+        """Image-wide pixel indices of rows (the seeds of their random numbers)."""
+        return rows + self.offset if self.pixels is None else self.pixels[rows]
 
     def part(self, start, stop):
         """The pixels [start, stop) as a GBuffer of their own (rows of a pass
@@ -94,6 +100,7 @@ class FirstPass:
     temporal: object        # Reservoirs
     glossy_samples: object = None   # GlossySamples (glossy_reuse.py), or None without path reuse
     sky: np.ndarray = None  # (P,) luminance of the sky rays' light (part of direct)
+    sample_value: np.ndarray = None     # (P,) the first initial sample's weight (gradients.py)
 
     @staticmethod
     def allocate(n, shaded, with_hold, glossy_samples=None):
@@ -107,7 +114,7 @@ class FirstPass:
                          shaded[:, 14:17], shaded[:, 3:6],
                          shaded[:, 9:12], shaded[:, 13], shaded[:, 12], np.empty(n, np.int32),
                          np.empty(n, np.int8) if with_hold else None, Reservoirs.empty(0).whole_image(n),
-                         glossy_samples, np.empty(n, np.float32))
+                         glossy_samples, np.empty(n, np.float32), np.empty(n, np.float32))
 
 
 @dataclass
@@ -221,14 +228,15 @@ def seen_directly(ctx, o, d, tmax, hits, surf, idx):
     return emission
 
 
-def trace_rows(ctx, seed, frame, pixel_filter, jitter, start, stop, stream_index=None):
-    """The GBuffer of pixels [start, stop) (offset start). stream_index: the
-    frame's place in its image stream, whose pixel filter positions then
+def trace_rows(ctx, seed, frame, pixel_filter, jitter, start, stop, stream_index=None, pixels=None):
+    """The GBuffer of pixels [start, stop) (offset start), or with ``pixels``
+    of those image-wide pixel indices (start and stop unused). stream_index:
+    the frame's place in its image stream, whose pixel filter positions then
     follow stream_jitter (else each frame's are hashed anew)."""
     scene = ctx.scene
     w, h = scene.width, scene.height
-    n = stop - start
-    pix = np.arange(start, stop, dtype=np.int64)
+    pix = np.arange(start, stop, dtype=np.int64) if pixels is None else np.asarray(pixels, np.int64)
+    n = len(pix)
     seeds = samplers.path_seeds(seed, frame, pix, CAMERA_SAMPLE) if jitter else None
     along = stream_jitter(seed, pix, stream_index) if jitter and stream_index is not None else None
     o, d, tmax = camera_rays(scene, pixel_filter, pix, seeds, along)
@@ -245,4 +253,6 @@ def trace_rows(ctx, seed, frame, pixel_filter, jitter, start, stop, stream_index
         depth[idx] = view_depth(scene.camera, surf.p)
         object_id[idx] = np.take(scene.object_ids, surf.prim)
         scatter(albedo, idx, np.clip(frame_sh.params.diffuse + frame_sh.params.f0, 0.0, 1.0))
+    if pixels is not None:
+        return GBuffer(valid, surf, frame_sh, idx, depth, object_id, emission, albedo, w, h, 0, pixels=pix)
     return GBuffer(valid, surf, frame_sh, idx, depth, object_id, emission, albedo, w, h, start)

@@ -182,7 +182,7 @@ def initial_samples(ctx, gb, seed, frame, sample, how, stream_index=None):
     surf, index = gb.surf, gb.index
     if len(index) == 0:
         return res, direct, glossy_light
-    seeds = samplers.path_seeds(seed, frame, index + gb.offset, sample)
+    seeds = samplers.path_seeds(seed, frame, gb.ids(index), sample)
     frame_sh = gb.frame
     params, wo_l = frame_sh.params, frame_sh.wo_local
 
@@ -193,7 +193,7 @@ def initial_samples(ctx, gb, seed, frame, sample, how, stream_index=None):
         u_light = None
     else:
         (u_lobe, u), u_light = samplers.first_bounce_uniforms(
-            samplers.hash_keys(seed, index + gb.offset, STREAM_SAMPLE), stream_index)
+            samplers.hash_keys(seed, gb.ids(index), STREAM_SAMPLE), stream_index)
     wi_l = square_to_uniform_hemisphere(u) if sampling == UNIFORM else square_to_cosine_hemisphere(u)
     glossy = _bsdf_sampled(params)
     by_kind = getattr(ctx.accel, "per_kind_visibility", False)

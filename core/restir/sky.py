@@ -134,7 +134,7 @@ def visible_sky_light(ctx, gb, seed, frame, seeds, plan, run, stream_indices):
     out = np.zeros((len(gb.index), 3), np.float32)
     if run <= 0 or len(gb.index) == 0 or ctx.lights.environment is None:
         return out
-    pixels = gb.index + gb.offset
+    pixels = gb.ids(gb.index)
     r = float(samplers.uniform(samplers.hash_keys(seed, frame, SKY_SAMPLE), 0))
     cast = (counts > 0) & ((keep >= 1.0) | (np.modf(pixels * _GOLDEN + r)[0] < keep))
     rows = None if cast.all() else np.nonzero(cast)[0]

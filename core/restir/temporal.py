@@ -47,6 +47,11 @@ class FrameHistory:
     # carry_with_objects (None: the visible points p).
     temporal_owner: np.ndarray = None
     spatial_owner: np.ndarray = None
+    # Each pixel's first initial sample's weight, and the frame number and
+    # stream index its random numbers came from (gradients.py draws it again).
+    sample_value: np.ndarray = None
+    frame: int = None
+    index: int = None
 
     def owners(self, spatial=False):
         """(P, 3) the points each pixel's temporal (or spatial) reservoir's
@@ -56,8 +61,9 @@ class FrameHistory:
 
 
 # Per pixel of the G-buffer history: p, n, ng (3 x float32 x 3), depth
-# (float32), valid (bool), object id (int32); noise hold and visibility (int8).
-_GBUFFER_BYTES = 3 * 3 * 4 + 4 + 1 + 4
+# (float32), valid (bool), object id (int32), the first initial sample's
+# weight (float32); noise hold and visibility (int8).
+_GBUFFER_BYTES = 3 * 3 * 4 + 4 + 1 + 4 + 4
 _FLAG_BYTES = 1 + 1
 
 

@@ -160,7 +160,7 @@ def test06_a_share_of_frames_casting_keeps_the_mean():
     ctx, surf, frame = scene_and_points()
     ref = brute_force(ctx, surf, frame)
     idx = np.tile(np.arange(len(surf)), 200)
-    gb = SimpleNamespace(index=np.arange(len(idx)), offset=0, surf=surf.subset(idx), frame=frame.subset(idx))
+    gb = SimpleNamespace(index=np.arange(len(idx)), offset=0, ids=lambda rows: rows, surf=surf.subset(idx), frame=frame.subset(idx))
     plan = (np.tile([1, 4, 1], 200), np.tile(np.float32([0.25, 1.0, 0.5]), 200))
 
     def frame_of(f):        # (reads ctx and gb when called: the second scene's below)
@@ -173,7 +173,7 @@ def test06_a_share_of_frames_casting_keeps_the_mean():
     assert np.abs(z).max() < 4.0, (per_point, ref, z)
     ctx.close()
     ctx, surf, frame = scene_and_points(wall=False)     # every ray open: nonzero = cast
-    gb = SimpleNamespace(index=np.arange(len(idx)), offset=0, surf=surf.subset(idx), frame=frame.subset(idx))
+    gb = SimpleNamespace(index=np.arange(len(idx)), offset=0, ids=lambda rows: rows, surf=surf.subset(idx), frame=frame.subset(idx))
     cast = np.mean([(frame_of(f)[:, 2] > 0).reshape(200, 3).mean(axis=0) for f in range(20)], axis=0)
     np.testing.assert_allclose(cast, [0.25, 1.0, 0.5], atol=0.015)
     ctx.close()

@@ -1,0 +1,147 @@
+"""Temporal gradients: where the light changed since last frame, so that the
+history forgets only there (A-SVGF, Schied et al. 2018).
+
+When objects move, the light of the surfaces around them changes (their
+shadows, the light they reflect, what they hide) while the rest of the image
+stays as it was. Without a measure of where, the reservoirs kept their full
+history everywhere (a floor next to a box sliding into the sun got half of
+the light the box now reflects onto it, the frame 5 % dark) and every
+pixel's running mean dropped to MOVING_CAP frames (frame.py): the whole
+image as noisy as after a cut for as long as anything moved.
+
+A-SVGF's gradient re-shades some of last frame's samples, with their own
+random numbers, in the new scene: where nothing changed the result is the
+same to the bit, where the light changed it differs by the change. Here,
+one pixel per STRATUM x STRATUM block of last frame's image has its camera
+ray (last frame's camera and pixel filter offset) and its first initial
+sample (the BSDF direction and the path from the point it hits) drawn again
+with last frame's frame number and stream index; the sample's weight
+(initial.py: luminance of its radiance times the cosine over its pdf) is
+compared with the one last frame stored (FrameHistory.sample_value). The
+direct light is left out: a moving shadow has the running means' gate
+(accumulation.light_range), and its estimate takes as many light samples
+as each pixel's noise asks for, which would differ.
+
+The single values are noisy, so as in A-SVGF they are summed over a window
+before the ratio is taken:
+
+    lambda = sum |new - old| / sum max(new, old)
+
+0 where nothing changed, 1 where the light was replaced. The running mean's
+weight of the new frame becomes A-SVGF's
+
+    alpha' = lambda + (1 - lambda) / cap,
+
+so a history keeps at most 1 / alpha' - 1 frames (history_frames), and a
+reservoir the same share of its M cap (kept_share).
+"""
+
+import copy
+
+import numpy as np
+
+from ..sampling import samplers
+from ..util.rows import gather
+from .gbuffer import trace_rows
+from .initial import initial_samples
+
+STRATUM = 3             # one re-drawn sample per STRATUM x STRATUM pixels
+RADIUS = 5              # window half-size (pixels) of the sums: about 13 re-drawn samples
+GRADIENT_PIXELS = 0x6AD1    # random-number domain of the strata's choice of pixel
+# lambda is the window's relative change times GAIN: a light that changes by
+# a few percent a frame (a box sliding into the sun) gives single sums of
+# 0.01-0.05, under which A-SVGF's alpha' keeps nearly the whole history.
+# corpus_movers, still camera, biased + denoiser, frame 32 MSE
+# (bench/equal_time.py): 0.1383 at 1, 0.1309 at 4, 0.1285 at 10, 0.1264 at 30.
+GAIN = 10.0
+SAME_POINT = 1e-4       # a re-drawn camera ray's hit within this share of its depth of last frame's
+
+
+def stratum_pixels(width, height, seed, frame):
+    """One pixel index per STRATUM x STRATUM block of the image, at a random
+    place in its block (new each frame), inside the image."""
+    bx = np.arange(0, width, STRATUM, dtype=np.int64)
+    by = np.arange(0, height, STRATUM, dtype=np.int64)
+    x0, y0 = np.meshgrid(bx, by)
+    block = (y0 * width + x0).ravel()
+    u = samplers.uniform2(samplers.hash_keys(seed, frame, block + GRADIENT_PIXELS), 0)
+    x = np.minimum(x0.ravel() + (u[:, 0] * STRATUM).astype(np.int64), width - 1)
+    y = np.minimum(y0.ravel() + (u[:, 1] * STRATUM).astype(np.int64), height - 1)
+    return y * width + x
+
+
+def redrawn_values(ctx, history, seed, pixel_filter, how, stream_index):
+    """(pixels, old, new, valid): for one pixel per stratum of last frame's
+    image, the first initial sample's weight last frame stored and the
+    weight the same random numbers give in the current scene, seen through
+    last frame's camera. how: initialSampling as last frame drew with
+    (its light sample counts do not enter the weight); stream_index: of
+    last frame's first sample, or None."""
+    w, h = history.width, history.height
+    pixels = stratum_pixels(w, h, seed, history.frame)
+    then = copy.copy(ctx.scene)
+    then.camera = history.camera
+    view = copy.copy(ctx)
+    view.scene = then
+    gb = trace_rows(view, seed, history.frame, pixel_filter, True, 0, 0, history.index, pixels=pixels)
+    res, _, _ = initial_samples(view, gb, seed, history.frame, 0, how, stream_index=stream_index)
+    old = gather(history.sample_value, pixels)
+    # Only where the camera ray found the surface it found last frame: a
+    # pixel that now sees another surface (a moving object's silhouette)
+    # tells nothing of the light, and one on a moved object has its own caps.
+    p_then = gather(history.p, pixels)
+    p_now = np.zeros_like(p_then)
+    p_now[gb.index] = gb.surf.p
+    apart = np.linalg.norm(p_now - p_then, axis=1)
+    same = (gb.object_id == gather(history.object_id, pixels)) & \
+        (apart <= SAME_POINT * np.maximum(gather(history.depth, pixels), 1e-6))
+    valid = gb.valid & gather(history.valid, pixels) & same
+    return pixels, old, res.w_sum.astype(np.float32), valid
+
+
+def box_sum(values, width, height, radius=RADIUS):
+    """Sums of ``values`` (P,) over each (2r+1)^2 window of a width x height
+    image (whole-image cumulative sums, float64)."""
+    img = values.reshape(height, width).astype(np.float64)
+    c = np.cumsum(np.cumsum(np.pad(img, radius), axis=0), axis=1)
+    c = np.pad(c, ((1, 0), (1, 0)))
+    k = 2 * radius + 1
+    return (c[k:, k:] - c[:-k, k:] - c[k:, :-k] + c[:-k, :-k]).reshape(-1)
+
+
+def temporal_gradient(pixels, old, new, valid, width, height, radius=RADIUS):
+    """lambda (P,) float32 in [0, 1] per pixel of a width x height image:
+    the relative change of the light around it, from the values ``old`` and
+    ``new`` of the re-drawn samples at ``pixels`` (where ``valid``)."""
+    ok = valid & np.isfinite(old) & np.isfinite(new)
+    at = pixels[ok]
+    a = np.maximum(old[ok], 0.0)
+    b = np.maximum(new[ok], 0.0)
+    diff = np.zeros(width * height)
+    top = np.zeros(width * height)
+    diff[at] = np.abs(b - a)
+    top[at] = np.maximum(a, b)
+    num, den = box_sum(diff, width, height, radius), box_sum(top, width, height, radius)
+    lam = np.where(den > 0, GAIN * num / np.maximum(den, 1e-30), 0.0)
+    return np.clip(lam, 0.0, 1.0).astype(np.float32)
+
+
+def history_frames(lam, cap):
+    """Frames of history a running mean of at most ``cap`` frames may keep
+    where its light changed by lambda (the new frame then weighs alpha')."""
+    alpha = lam + (1.0 - lam) / float(cap)
+    return np.maximum(1.0 / alpha - 1.0, 0.0).astype(np.float32)
+
+
+def kept_share(lam, cap):
+    """Share of its history cap a reservoir keeps where the light changed by
+    lambda: history_frames over the cap's own (1 at lambda 0, 0 at 1)."""
+    return history_frames(lam, cap) / max(float(cap) - 1.0, 1.0)
+
+
+def cap_reservoirs(res, cap):
+    """Bound each row's M by ``cap`` (P,), at least 1, in place. The next
+    frame reads the history's W and M only, so a lower M is a history that
+    weighs less; one frame's worth stays (emptied reservoirs left blocks of
+    the biased mode's frame dark)."""
+    np.minimum(res.M, np.maximum(cap, 1.0).astype(np.float32), out=res.M)
