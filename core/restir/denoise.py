@@ -45,8 +45,9 @@ on how the pixels are split.
 Lag: the filter adds none of its own (it reads only this frame's means); the
 running means' history is what lags, and it restarts where accumulation.py
 restarts it (disocclusions, edits of lights and materials, the gate on
-moving objects' shadows), the restarted pixels then blurred more. A-SVGF's
-temporal gradients are not done here.
+moving objects' shadows), the restarted pixels then blurred more; where
+objects moved, A-SVGF's temporal gradients (gradients.py) decide how much of
+the indirect light's history each pixel keeps.
 """
 
 import numpy as np

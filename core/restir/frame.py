@@ -36,7 +36,7 @@ from ..materials import shading as materials
 from ..sampling import samplers
 from ..util.rows import gather, scale, scatter, scatter_add
 from ..util.vectors import luminance
-from .accumulation import COLUMNS, Accumulation, FrameValues, accumulate, light_range, restart
+from .accumulation import COLUMNS, STILL, Accumulation, FrameValues, accumulate, light_range, restart
 from .adaptive_direct import light_sample_counts, reprojected_hold, update_noise_hold
 from .boiling import boiling_filter
 from .denoise import MOMENTS, frame_moments
@@ -50,6 +50,7 @@ from .reprojection import film_shift, geometric_edges, previous_pixels, same_vie
 from .reservoirs import distinct, finalize, merge
 from .scene_changes import SceneChanges, scene_changes
 from .settings import UNBIASED
+from .shadow_reach import reached
 from .shading import carried_visibility, shade_indirect
 from .shift import target_at
 from .sky import pixel_shares, point_plan, visible_sky_light
@@ -318,11 +319,15 @@ def forget_where_changed(s):
         restart(s.prev_acc, MOVING_CAP)
         return
     frames = history_frames(s.gradient, s.settings.accumulate)
+    light = MOVING_CAP
     if s.motion is not None:
         oid = history.object_id
         on = np.where(oid >= 0, s.motion.moved_before[np.clip(oid, 0, len(s.motion.moved_before) - 1)], False)
         frames[on] = np.minimum(frames[on], MOVING_CAP)
-    restart(s.prev_acc, frames, light_cap=MOVING_CAP)
+        reach = reached(s.ctx.scene, s.ctx.lights, s.motion, history.p, oid >= 0, frames=MOVING_CAP)
+        if reach is not None:
+            light = np.where(reach | on, np.float32(MOVING_CAP), np.float32(STILL))
+    restart(s.prev_acc, frames, light_cap=light)
 
 
 def second_pass(s):
