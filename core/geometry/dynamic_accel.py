@@ -19,6 +19,7 @@ import time
 import numpy as np
 
 from .accel import Accel, RayHits
+from .boxes import crosses_box
 from ..scene import column_bounds
 
 
@@ -46,21 +47,6 @@ def _compact(vertices, triangles):
             np.ascontiguousarray(remap[triangles], np.int32))
 
 
-def _crosses_box(o, d, limit, lo, hi):
-    """Rays whose segment [0, limit] may touch the box [lo, hi] (slab test, one
-    axis at a time on columns; conservative: NaNs count as crossing)."""
-    near = np.zeros(len(o), np.float32)
-    far = np.array(limit, np.float32)
-    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-        for k in range(3):
-            inv = np.float32(1.0) / d[:, k]
-            a = (lo[k] - o[:, k]) * inv
-            b = (hi[k] - o[:, k]) * inv
-            np.maximum(near, np.minimum(a, b), out=near)
-            np.minimum(far, np.maximum(a, b), out=far)
-        return ~(far < near)
-
-
 class _Part:
     """One Embree scene over a subset of the combined scene's triangles."""
 
@@ -81,7 +67,7 @@ class _Part:
 
     def crossing(self, o, d, limit):
         """Rows whose segment may reach this part's triangles."""
-        return np.nonzero(_crosses_box(o, d, limit, self.lo, self.hi))[0]
+        return np.nonzero(crosses_box(o, d, limit, self.lo, self.hi))[0]
 
     def close(self):
         self.accel.close()

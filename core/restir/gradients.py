@@ -6,7 +6,7 @@ shadows, the light they reflect, what they hide) while the rest of the image
 stays as it was. Without a measure of where, the reservoirs kept their full
 history everywhere (a floor next to a box sliding into the sun got half of
 the light the box now reflects onto it, the frame 5 % dark) and every
-pixel's running mean dropped to MOVING_CAP frames (frame.py): the whole
+pixel's running mean dropped to MOVING_CAP frames (moved_history.py): the whole
 image as noisy as after a cut for as long as anything moved.
 
 A-SVGF's gradient re-shades some of last frame's samples, with their own
@@ -42,6 +42,7 @@ import numpy as np
 
 from ..sampling import samplers
 from ..util.rows import gather
+from ..util.windows import window_sums
 from .gbuffer import trace_rows
 from .initial import initial_samples
 
@@ -100,16 +101,6 @@ def redrawn_values(ctx, history, seed, pixel_filter, how, stream_index):
     return pixels, old, res.w_sum.astype(np.float32), valid
 
 
-def box_sum(values, width, height, radius=RADIUS):
-    """Sums of ``values`` (P,) over each (2r+1)^2 window of a width x height
-    image (whole-image cumulative sums, float64)."""
-    img = values.reshape(height, width).astype(np.float64)
-    c = np.cumsum(np.cumsum(np.pad(img, radius), axis=0), axis=1)
-    c = np.pad(c, ((1, 0), (1, 0)))
-    k = 2 * radius + 1
-    return (c[k:, k:] - c[:-k, k:] - c[k:, :-k] + c[:-k, :-k]).reshape(-1)
-
-
 def temporal_gradient(pixels, old, new, valid, width, height, radius=RADIUS):
     """lambda (P,) float32 in [0, 1] per pixel of a width x height image:
     the relative change of the light around it, from the values ``old`` and
@@ -122,7 +113,8 @@ def temporal_gradient(pixels, old, new, valid, width, height, radius=RADIUS):
     top = np.zeros(width * height)
     diff[at] = np.abs(b - a)
     top[at] = np.maximum(a, b)
-    num, den = box_sum(diff, width, height, radius), box_sum(top, width, height, radius)
+    num = window_sums(diff, width, height, radius).reshape(-1)
+    den = window_sums(top, width, height, radius).reshape(-1)
     lam = np.where(den > 0, GAIN * num / np.maximum(den, 1e-30), 0.0)
     return np.clip(lam, 0.0, 1.0).astype(np.float32)
 

@@ -14,6 +14,7 @@ pixel within NEAR box radii).
 
 import numpy as np
 
+from ..geometry.boxes import crosses_box
 from ..scene import LIGHT_AREA, LIGHT_POINT, LIGHT_SPOT, LIGHT_SUN
 
 NEAR = 3.0              # pixels within this many swept-box radii: the object fills much of their sky
@@ -45,18 +46,8 @@ def swept_boxes(scene, motion, frames=1):
 
 
 def segment_hits_box(a, b, lo, hi):
-    """(N,) bool: the segments a -> b (N, 3) pass through the box [lo, hi]."""
-    d = b - a
-    with np.errstate(divide="ignore", invalid="ignore"):
-        inv = 1.0 / d
-        t0 = (lo - a) * inv
-        t1 = (hi - a) * inv
-    near = np.nanmax(np.where(np.isnan(t0), -np.inf, np.minimum(t0, t1)), axis=1)
-    far = np.nanmin(np.where(np.isnan(t1), np.inf, np.maximum(t0, t1)), axis=1)
-    # Axes the segment runs parallel to: inside the slab or not at all.
-    flat = d == 0
-    outside = (flat & ((a < lo) | (a > hi))).any(axis=1)
-    return (near <= far) & (far >= 0.0) & (near <= 1.0) & ~outside
+    """(N,) bool: the segments a -> b (N, 3) may pass through the box [lo, hi]."""
+    return crosses_box(a, b - a, np.ones(len(a)), lo, hi)
 
 
 def reached(scene, lights, motion, p, valid, frames=1):

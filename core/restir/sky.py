@@ -31,6 +31,7 @@ from ..lights.analytic import INF_DIST
 from ..integrators.base import shadow_rays
 from ..util.rows import gather, row_max, scale, scatter
 from ..util.vectors import dot, to_world
+from ..util.windows import window_sums
 from ..sampling.warps import square_to_cosine_hemisphere
 from .initial import world_share
 
@@ -162,13 +163,7 @@ def pixel_shares(sky, light, width, height, radius=SHARE_RADIUS):
     one pixel's share from four rays is noise (all blocked in one frame
     put it at 0 and its next frame at one ray weighted 16), and the sky's
     openness changes slowly across the image."""
-    def box(a):
-        a = np.pad(a.reshape(height, width).astype(np.float64), radius, mode="edge")
-        c = np.cumsum(np.cumsum(np.pad(a, ((1, 0), (1, 0))), axis=0), axis=1)
-        k = 2 * radius + 1
-        return c[k:, k:] - c[:-k, k:] - c[k:, :-k] + c[:-k, :-k]
-
-    d = box(light)
+    d = window_sums(light, width, height, radius, mode="edge")
     with np.errstate(invalid="ignore", divide="ignore"):
-        share = np.where(d > 0, box(sky) / d, 0.0)
+        share = np.where(d > 0, window_sums(sky, width, height, radius, mode="edge") / d, 0.0)
     return share.reshape(-1).astype(np.float16)

@@ -7,7 +7,7 @@ import numpy as np
 from restir_gi.core import RenderContext
 from restir_gi.core.camera.projection import PixelFilter
 from restir_gi.core.restir import ReSTIRGI, ReSTIRSettings
-from restir_gi.core.restir.frame import MOVING_CAP
+from restir_gi.core.restir.moved_history import MOVING_CAP
 from restir_gi.core.restir.gradients import (RADIUS, STRATUM, history_frames, kept_share, redrawn_values,
                                              stratum_pixels, temporal_gradient)
 from restir_gi.core.restir.initial import InitialSampling

@@ -192,8 +192,9 @@ def test_the_lag_measure_sees_a_history_kept_across_the_shadow(monkeypatch):
     (no light gate, every frame of the running means kept): the shadow
     smears along its path and trails by more than the bound above."""
     import restir_gi.core.restir.frame as frame_module
+    import restir_gi.core.restir.moved_history as moved_history
     monkeypatch.setattr(frame_module, "light_range", lambda *a, **k: None)
-    monkeypatch.setattr(frame_module, "MOVING_CAP", 1 << 30)
+    monkeypatch.setattr(moved_history, "MOVING_CAP", 1 << 30)
     lag = shadow_lag(ReSTIRSettings(seed=5, max_bounces=3, denoise=True), LAG_POSITIONS)
     print(f"shadow lag with the history kept: {lag:.2f} frames")
     assert lag > LAG_BOUND, lag

@@ -8,7 +8,7 @@ import numpy as np
 from restir_gi.core import RenderContext
 from restir_gi.core.restir.accumulation import LIGHT_FRAMES
 from restir_gi.core.restir import ReSTIRGI, ReSTIRSettings
-from restir_gi.core.restir.frame import MOVING_CAP
+from restir_gi.core.restir.moved_history import MOVING_CAP
 from restir_gi.core.restir.shadow_reach import reached, segment_hits_box, swept_boxes
 from support.moving_card import OCCLUDER, scene_with
 
