@@ -57,8 +57,8 @@ class ReSTIRGI:
         if h is None:
             return 0
         return sum(r.nbytes for r in distinct(h.temporal, h.spatial)) + sum(
-            a.nbytes for a in (h.p, h.n, h.ng, h.depth, h.valid, h.object_id, h.sample_value, h.noise_hold,
-                                h.sky_share, h.visibility, h.accumulation) if a is not None)
+            a.nbytes for a in (h.p, h.n, h.ng, h.depth, h.valid, h.object_id, h.sample_value, h.light_probe,
+                                h.noise_hold, h.sky_share, h.visibility, h.accumulation) if a is not None)
 
     def render_frame(self, ctx, settings, frame):
         """One frame. Afterwards ``last_timings`` holds seconds per pass: wall

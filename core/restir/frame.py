@@ -12,6 +12,9 @@ function of it, run in this order by ``STAGES`` (the wavefront of pbrt-v4's
                    the light changed, reservoirs and running means forget
     first pass     per pixel range: G-buffer, reprojection, initial samples,
                    sky rays, temporal reuse
+    light probes   (light_probes.py) where objects moved, last frame's light
+                   probes again in this frame's scene: where the direct
+                   light changed, its running means forget
     between passes edge refinement, the gates of the running means, the
                    boiling filter, last frame's state let go
     second pass    per pixel range: spatial reuse, shading, glossy reuse,
@@ -44,7 +47,7 @@ from .denoise import denoise as svgf
 from .gbuffer import FirstPass, FrameImage, trace_rows
 from .ghosts import SurfaceRange, parallax, surface_range
 from .glossy_reuse import GlossySamples, reuse_glossy
-from .moved_history import forget_where_changed, temporal_gradients
+from .moved_history import forget_where_changed, light_probes, temporal_gradients
 from .initial import InitialSampling, initial_samples
 from .reprojection import film_shift, geometric_edges, previous_pixels, same_view
 from .reservoirs import distinct, finalize, merge
@@ -101,6 +104,8 @@ class FrameState:
     refined: object = None          # silhouettes.RefinedSeen, or None
     gate: object = None             # accumulation.light_range, or None
     edges: np.ndarray = None        # geometric edges, or None
+    light_change: np.ndarray = None     # light_probes' lambda over last frame's pixels, or None
+    light_probe: np.ndarray = None      # this frame's light probes (light_probes.py), or None
     surface: SurfaceRange = None    # this frame's albedo and normal ranges (moving views), or None
     film: tuple = None              # reprojection.film_shift of every pixel (moving views), or None
     carry: bool = False             # last frame's spatial reservoirs are candidates
@@ -383,7 +388,7 @@ def denoise(s):
                                          poll=s.ctx.accel.poll)
 
 
-STAGES = (scene_changes, temporal_gradients, first_pass, between_passes, second_pass, denoise)
+STAGES = (scene_changes, temporal_gradients, first_pass, light_probes, between_passes, second_pass, denoise)
 
 
 def next_history(s, signature):
@@ -408,5 +413,5 @@ def next_history(s, signature):
         object_keys=list(scene.object_keys), object_matrices=np.asarray(scene.object_matrices),
         signature=signature, temporal=s.temporal, spatial=s.spatial, visibility=s.visibility,
         noise_hold=hold, accumulation=frame_acc if s.accumulating else None, sky_share=sky_share,
-        sample_value=sample_value, frame=s.frame, index=s.index)
+        sample_value=sample_value, frame=s.frame, index=s.index, light_probe=s.light_probe)
     return history, frame_acc

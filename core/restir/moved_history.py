@@ -1,6 +1,7 @@
-"""What history survives where objects moved: the stage that measures where
-the light changed (gradients.py) and caps the reservoirs there, and the caps
-of the running means that follow from it (frame.py runs both)."""
+"""What history survives where objects moved: the stages that measure where
+the light changed (gradients.py for the indirect light, light_probes.py for
+the direct light) and cap the reservoirs there, and the caps of the running
+means that follow from them (frame.py runs them)."""
 
 import time
 
@@ -9,6 +10,7 @@ import numpy as np
 from .accumulation import STILL, restart
 from .gradients import cap_reservoirs, history_frames, kept_share, redrawn_values, temporal_gradient
 from .initial import InitialSampling
+from .light_probes import image_probes, light_change, probes_moved
 from .shadow_reach import reached
 from .timings import stage
 
@@ -39,6 +41,25 @@ def temporal_gradients(s):
     s.timings.spent("validation", t)
 
 
+def light_probes(s):
+    """Where objects moved: last frame's light probes again in the current
+    scene, and how much the direct light changed around each of last
+    frame's pixels (s.light_change, light_probes.py); this frame's own
+    probes for the next frame (s.light_probe)."""
+    if not (s.moved and s.accumulating):
+        return
+    t = time.perf_counter()
+    history, seed = s.history, s.settings.seed
+    with stage("light probes"):
+        if history is not None and history.light_probe is not None and history.n is not None \
+                and (history.width, history.height) == (s.width, s.height):
+            new = probes_moved(s.ctx, history, s.motion, seed)
+            s.light_change = light_change(history.light_probe, new, s.width, s.height)
+        one = s.first
+        s.light_probe = image_probes(s.ctx, one.p, one.n, one.ng, one.valid, seed)
+    s.timings.spent("validation", t)
+
+
 def forget_where_changed(s):
     """The running means after objects moved: all keep at most MOVING_CAP
     frames, unless temporal_gradients measured where the light changed. Then
@@ -46,6 +67,8 @@ def forget_where_changed(s):
     anything that moved, all of it), the rest MOVING_CAP frames (a moving
     shadow: the gate of accumulate stops its history inside, this its
     edges), and pixels on the objects that moved MOVING_CAP frames of both.
+    Where light_probes measured the direct light's change, the rest keeps
+    what that change allows instead (pixels on moved objects too).
     (The indirect light of the whole image held 4 frames while anything
     moved: corpus_movers, still camera, frame 32 MSE 0.1645 -> 0.1285 with
     the reservoirs' caps.)"""
@@ -63,4 +86,6 @@ def forget_where_changed(s):
         reach = reached(s.ctx.scene, s.ctx.lights, s.motion, history.p, oid >= 0, frames=MOVING_CAP)
         if reach is not None:
             light = np.where(reach | on, np.float32(MOVING_CAP), np.float32(STILL))
+    if s.light_change is not None:
+        light = history_frames(s.light_change, STILL)
     restart(s.prev_acc, frames, light_cap=light)

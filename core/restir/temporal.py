@@ -52,6 +52,8 @@ class FrameHistory:
     sample_value: np.ndarray = None
     frame: int = None
     index: int = None
+    # Each pixel's light probe (light_probes.py), in frames where objects moved.
+    light_probe: np.ndarray = None
 
     def owners(self, spatial=False):
         """(P, 3) the points each pixel's temporal (or spatial) reservoir's
@@ -62,19 +64,23 @@ class FrameHistory:
 
 # Per pixel of the G-buffer history: p, n, ng (3 x float32 x 3), depth
 # (float32), valid (bool), object id (int32), the first initial sample's
-# weight (float32); noise hold and visibility (int8).
+# weight (float32); noise hold and visibility (int8); in frames where objects
+# moved and frames are accumulated, the light probe (float32).
 _GBUFFER_BYTES = 3 * 3 * 4 + 4 + 1 + 4 + 4
 _FLAG_BYTES = 1 + 1
+_PROBE_BYTES = 4
 
 
-def state_bytes_per_pixel(accumulating=True, pixels=NARROW_MIN_PIXELS, denoise=False):
+def state_bytes_per_pixel(accumulating=True, pixels=NARROW_MIN_PIXELS, denoise=False, moving=True):
     """Bytes per pixel of what a frame of ``pixels`` pixels keeps for the
     next (FrameHistory): the temporal and spatial reservoirs (narrowed from
     NARROW_MIN_PIXELS on: reservoirs.py), the G-buffer history, two
     flags and, when frames are accumulated, the running means, with the
-    denoiser's moments when it is on (docs/memory.md)."""
+    denoiser's moments when it is on, and where objects move (``moving``:
+    the most a frame keeps) the light probes (docs/memory.md)."""
     return (2 * bytes_per_row(pixels, kept=True) + _GBUFFER_BYTES + _FLAG_BYTES
-            + ((COLUMNS + (MOMENTS if denoise else 0)) * 4 if accumulating else 0))
+            + ((COLUMNS + (MOMENTS if denoise else 0)) * 4 + (_PROBE_BYTES if moving else 0)
+               if accumulating else 0))
 
 
 def _object_motions(scene, history):
@@ -110,6 +116,7 @@ class ObjectMotion:
                                 # (identity where an object is new or did not move)
     moved_now: np.ndarray       # (O,) bool over current object ids
     moved_before: np.ndarray    # (O_prev,) bool over last frame's object ids
+    to_current: np.ndarray = None   # (O_prev, 4, 4) per last frame's object id: last frame -> current
 
     @classmethod
     def between(cls, scene, history):
@@ -118,9 +125,11 @@ class ObjectMotion:
         if not moved:
             return None
         out = cls(np.tile(np.eye(4, dtype=np.float64), (len(scene.object_keys), 1, 1)),
-                  np.zeros(len(scene.object_keys), bool), np.zeros(len(history.object_keys), bool))
+                  np.zeros(len(scene.object_keys), bool), np.zeros(len(history.object_keys), bool),
+                  np.tile(np.eye(4, dtype=np.float64), (len(history.object_keys), 1, 1)))
         for i, (j, to_prev) in moved.items():
             out.to_previous[i] = to_prev
+            out.to_current[j] = np.linalg.inv(to_prev)
             out.moved_now[i], out.moved_before[j] = True, True
         return out
 

@@ -8,6 +8,7 @@ import pytest
 from restir_gi.core import RenderContext
 from restir_gi.core.restir import BIASED, UNBIASED, ReSTIRGI, ReSTIRSettings
 from restir_gi.core.restir.temporal import state_bytes_per_pixel
+from support.moving_card import OCCLUDER, SIZE, scene_with
 from support.scenes import cornell_box
 
 
@@ -27,9 +28,26 @@ def test_state_size_matches_the_arrays_held(mode, accumulate, narrow, denoise, m
         settings = ReSTIRSettings(mode=mode, max_bounces=2, seed=1, accumulate=accumulate, denoise=denoise)
         for f in range(2):
             restir.render_frame(ctx, settings, f)
-        assert restir.nbytes == 40 * 24 * state_bytes_per_pixel(accumulate > 1, pixels=40 * 24, denoise=denoise)
+        assert restir.nbytes == 40 * 24 * state_bytes_per_pixel(accumulate > 1, pixels=40 * 24, denoise=denoise,
+                                                                moving=False)
     finally:
         ctx.close()
+
+
+@pytest.mark.parametrize("accumulate", [16, 1])
+def test_state_size_counts_the_light_probes_where_objects_move(accumulate):
+    """Frames where objects moved keep a light probe per pixel
+    (core/restir/light_probes.py) when they accumulate."""
+    restir = ReSTIRGI()
+    settings = ReSTIRSettings(max_bounces=2, seed=1, accumulate=accumulate)
+    for f, x in enumerate((0.0, 0.1)):
+        ctx = RenderContext.build(scene_with(OCCLUDER, x))
+        try:
+            restir.render_frame(ctx, settings, f)
+        finally:
+            ctx.close()
+    assert (restir.history.light_probe is not None) == (accumulate > 1)
+    assert restir.nbytes == SIZE * SIZE * state_bytes_per_pixel(accumulate > 1, pixels=SIZE * SIZE)
 
 
 @pytest.mark.parametrize("mode", [BIASED, UNBIASED])
