@@ -35,7 +35,8 @@ the light's variance over the pixel's history. Here:
    (edge_filter.surface_blur): against each pixel's own, a bright pixel's
    neighbours gave it little weight and the filter darkened skewed noise.
 4. Remodulation by the albedo, plus the direct light and the radiance seen
-   directly.
+   directly; the direct light of pixels whose history just restarted, at
+   sharp edges of light, filtered over their 3x3 pixels (fresh_edges.py).
 
 Every step is a whole-image pass over pixel ranges (core/workers/parallel.py). A
 range computes the image rows it touches; the taps read neighbouring rows
@@ -55,6 +56,7 @@ import numpy as np
 from ..util.vectors import luminance
 from .accumulation import COLUMNS
 from .edge_filter import Image, atrous, depth_gradient, surface_blur, variance
+from .fresh_edges import fresh_edge_direct
 
 MOMENTS = 2                 # columns of the running means: mean luminance of the
                             # demodulated light, and mean of its square
@@ -157,15 +159,20 @@ def denoise(workers, data, depth, valid, width, height, iterations=ITERATIONS, t
             if not last:
                 return tuple(x.ravel()[lo:hi] for x in out)
             c = np.stack([out[0].ravel()[lo:hi], out[1].ravel()[lo:hi], out[2].ravel()[lo:hi]], axis=1)
-            return remodulate(c, data[a:b], valid[a:b])
+            direct = fresh_edge_direct(data, valid, width, height, r0, r1)[lo:hi]
+            return remodulate(c, data[a:b], valid[a:b], direct)
 
         if not last:
             img = Image(*workers.map_into(run(iteration), n))
         else:
             return workers.map_into(run(iteration), n)
     # (no iterations): remodulate the demodulated means as they are
-    return workers.map_into(run(lambda a, b: remodulate(
-        np.stack([red[a:b], green[a:b], blue[a:b]], axis=1), data[a:b], valid[a:b])), n)
+    def unfiltered(a, b):
+        r0, r1 = a // width, (b - 1) // width + 1
+        direct = fresh_edge_direct(data, valid, width, height, r0, r1)[a - r0 * width:b - r0 * width]
+        return remodulate(np.stack([red[a:b], green[a:b], blue[a:b]], axis=1), data[a:b], valid[a:b], direct)
+
+    return workers.map_into(run(unfiltered), n)
 
 
 def _clip_albedo(albedo):
@@ -177,13 +184,13 @@ def _albedo(rows):
     return _clip_albedo(rows[:, 6:9])
 
 
-def remodulate(c, rows, valid):
+def remodulate(c, rows, valid, direct=None):
     """(N, 3) float32 colour of filtered demodulated indirect light c (N, 3)
     for the running means' rows (N, columns): c times the albedo plus the
-    direct light and the radiance seen directly; rows that see no surface
-    keep their means."""
+    direct light (``direct`` (N, 3), or the rows' own) and the radiance seen
+    directly; rows that see no surface keep their means."""
     out = np.where(valid[:, None], c * _albedo(rows), _finite(rows[:, 3:6]))
-    out += _finite(rows[:, 0:3])
+    out += _finite(rows[:, 0:3] if direct is None else direct)
     out += _finite(rows[:, 14:17])
     return out.astype(np.float32, copy=False)
 

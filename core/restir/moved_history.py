@@ -83,7 +83,8 @@ def forget_where_changed(s):
         oid = history.object_id
         on = np.where(oid >= 0, s.motion.moved_before[np.clip(oid, 0, len(s.motion.moved_before) - 1)], False)
         frames[on] = np.minimum(frames[on], MOVING_CAP)
-        reach = reached(s.ctx.scene, s.ctx.lights, s.motion, history.p, oid >= 0, frames=MOVING_CAP)
+        reach = None if s.light_change is not None else \
+            reached(s.ctx.scene, s.ctx.lights, s.motion, history.p, oid >= 0, frames=MOVING_CAP)
         if reach is not None:
             light = np.where(reach | on, np.float32(MOVING_CAP), np.float32(STILL))
     if s.light_change is not None:

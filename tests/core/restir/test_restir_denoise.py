@@ -20,7 +20,7 @@ from restir_gi.core import RenderContext, RenderSettings, render_frame
 from restir_gi.core.workers.parallel import Workers
 from restir_gi.core.render import render_restir
 from restir_gi.core.restir import BIASED, UNBIASED, ReSTIRGI, ReSTIRSettings
-from restir_gi.core.restir.accumulation import COLUMNS
+from restir_gi.core.restir.accumulation import COLUMNS, LIGHT_FRAMES
 from restir_gi.core.restir.denoise import MOMENTS, denoise, frame_moments
 from restir_gi.core.util.vectors import luminance
 from support.scenes import cornell_box
@@ -42,6 +42,7 @@ def means(light, albedo, count=8.0, normal=(0.0, 0.0, 1.0), seen=0.0, moments=No
     data[:, 12] = count
     data[:, 13] = 1.0
     data[:, 14:17] = seen
+    data[:, LIGHT_FRAMES] = count
     data[:, COLUMNS:] = frame_moments(data[:, 3:6], data[:, 6:9]) if moments is None else moments
     return data
 
@@ -190,7 +191,8 @@ def test05_no_iterations_give_the_means_back(rng):
 
 def test06_direct_light_and_what_is_seen_directly_stay_sharp(rng):
     """Only the indirect light is filtered: noise in the direct light and
-    in the radiance seen directly comes out as it went in."""
+    in the radiance seen directly comes out as it went in (their histories
+    are not fresh: fresh_edges.py)."""
     n = W * H
     direct = rng.exponential(1.0, (n, 3)).astype(np.float32)
     seen = rng.exponential(0.5, (n, 3)).astype(np.float32)
