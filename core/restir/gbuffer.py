@@ -228,11 +228,13 @@ def seen_directly(ctx, o, d, tmax, hits, surf, idx):
     return emission
 
 
-def trace_rows(ctx, seed, frame, pixel_filter, jitter, start, stop, stream_index=None, pixels=None):
+def trace_rows(ctx, seed, frame, pixel_filter, jitter, start, stop, stream_index=None, pixels=None, aim=None):
     """The GBuffer of pixels [start, stop) (offset start), or with ``pixels``
     of those image-wide pixel indices (start and stop unused). stream_index:
     the frame's place in its image stream, whose pixel filter positions then
-    follow stream_jitter (else each frame's are hashed anew)."""
+    follow stream_jitter (else each frame's are hashed anew). aim: (rows
+    (K,), points (K, 3)): those rows' rays re-aimed from their origins at
+    the points, or None."""
     scene = ctx.scene
     w, h = scene.width, scene.height
     pix = np.arange(start, stop, dtype=np.int64) if pixels is None else np.asarray(pixels, np.int64)
@@ -240,6 +242,12 @@ def trace_rows(ctx, seed, frame, pixel_filter, jitter, start, stop, stream_index
     seeds = samplers.path_seeds(seed, frame, pix, CAMERA_SAMPLE) if jitter else None
     along = stream_jitter(seed, pix, stream_index) if jitter and stream_index is not None else None
     o, d, tmax = camera_rays(scene, pixel_filter, pix, seeds, along)
+    if aim is not None and len(aim[0]):
+        rows, points = aim
+        to = np.asarray(points, np.float64) - o[rows]
+        length = np.linalg.norm(to, axis=1, keepdims=True)
+        d[rows] = (to / np.maximum(length, 1e-30)).astype(d.dtype)
+        tmax[rows] = 2.0 * length[:, 0] + 1e-6      # past the point (a camera ray's clip range may end before it)
     hits = ctx.accel.intersect_closest(o, d, tmax, camera=True)
     surf, idx = surface_hits(scene, o, d, hits)
     emission = seen_directly(ctx, o, d, tmax, hits, surf, idx)

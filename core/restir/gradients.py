@@ -15,10 +15,13 @@ same to the bit, where the light changed it differs by the change. Here,
 one pixel per STRATUM x STRATUM block of last frame's image has its camera
 ray (last frame's camera and pixel filter offset) and its first initial
 sample (the BSDF direction and the path from the point it hits) drawn again
-with last frame's frame number and stream index; the sample's weight
-(initial.py: luminance of its radiance times the cosine over its pdf) is
-compared with the one last frame stored (FrameHistory.sample_value). The
-direct light is left out: a moving shadow has the running means' gate
+with last frame's frame number and stream index (a pixel whose point lay
+on an object that moved has its ray aimed at where that point went, A-SVGF's
+forward projection, so a moving object's own light is measured too); the
+sample's weight (initial.py: luminance of its radiance times the cosine
+over its pdf) is compared with the one last frame stored
+(FrameHistory.sample_value). The direct light is left out (light_probes.py
+measures it): a moving shadow has the running means' gate
 (accumulation.light_range), and its estimate takes as many light samples
 as each pixel's noise asks for, which would differ.
 
@@ -72,26 +75,31 @@ def stratum_pixels(width, height, seed, frame):
     return y * width + x
 
 
-def redrawn_values(ctx, history, seed, pixel_filter, how, stream_index):
+def redrawn_values(ctx, history, seed, pixel_filter, how, stream_index, motion=None):
     """(pixels, old, new, valid): for one pixel per stratum of last frame's
     image, the first initial sample's weight last frame stored and the
     weight the same random numbers give in the current scene, seen through
     last frame's camera. how: initialSampling as last frame drew with
     (its light sample counts do not enter the weight); stream_index: of
-    last frame's first sample, or None."""
+    last frame's first sample, or None. motion: temporal.ObjectMotion, or
+    None: a pixel whose surface moved has its ray aimed at where its point
+    went (A-SVGF's forward projection), so its sample is drawn again there."""
     w, h = history.width, history.height
     pixels = stratum_pixels(w, h, seed, history.frame)
     then = copy.copy(ctx.scene)
     then.camera = history.camera
     view = copy.copy(ctx)
     view.scene = then
-    gb = trace_rows(view, seed, history.frame, pixel_filter, True, 0, 0, history.index, pixels=pixels)
+    p_then = gather(history.p, pixels)
+    aim = moved_points(history, pixels, p_then, motion)
+    gb = trace_rows(view, seed, history.frame, pixel_filter, True, 0, 0, history.index, pixels=pixels, aim=aim)
     res, _, _ = initial_samples(view, gb, seed, history.frame, 0, how, stream_index=stream_index)
     old = gather(history.sample_value, pixels)
-    # Only where the camera ray found the surface it found last frame: a
-    # pixel that now sees another surface (a moving object's silhouette)
-    # tells nothing of the light, and one on a moved object has its own caps.
-    p_then = gather(history.p, pixels)
+    # Only where the camera ray found the surface it found last frame (where
+    # it moved to, on a moved object): a pixel that now sees another surface
+    # (a moving object's silhouette) tells nothing of the light.
+    if aim is not None:
+        p_then[aim[0]] = aim[1]
     p_now = np.zeros_like(p_then)
     p_now[gb.index] = gb.surf.p
     apart = np.linalg.norm(p_now - p_then, axis=1)
@@ -99,6 +107,17 @@ def redrawn_values(ctx, history, seed, pixel_filter, how, stream_index):
         (apart <= SAME_POINT * np.maximum(gather(history.depth, pixels), 1e-6))
     valid = gb.valid & gather(history.valid, pixels) & same
     return pixels, old, res.w_sum.astype(np.float32), valid
+
+
+def moved_points(history, pixels, p_then, motion):
+    """(rows, points) of the ``pixels`` whose visible point last frame lay on
+    an object that moved since, and where those points are now (p_then:
+    their points, (N, 3)); None if there are none."""
+    if motion is None or motion.to_current is None:
+        return None
+    moved = p_then.copy()
+    rows = motion.carry_forward(gather(history.object_id, pixels), gather(history.valid, pixels), points=(moved,))
+    return (rows, moved[rows]) if len(rows) else None
 
 
 def temporal_gradient(pixels, old, new, valid, width, height, radius=RADIUS):

@@ -78,18 +78,8 @@ def probes_moved(ctx, history, motion, seed):
     (temporal.ObjectMotion, or None)."""
     p, n, ng = history.p, history.n, history.ng
     if motion is not None and motion.to_current is not None:
-        oid = history.object_id
-        on = history.valid & (oid >= 0)
-        on[on] = motion.moved_before[np.clip(oid[on], 0, len(motion.moved_before) - 1)]
-        if on.any():
-            m = motion.to_current[oid[on]]
-            lin = m[:, :3, :3]
-            p, n, ng = p.copy(), n.copy(), ng.copy()
-            p[on] = np.einsum("kij,kj->ki", lin, p[on].astype(np.float64)) + m[:, :3, 3]
-            normal_m = np.transpose(np.linalg.inv(lin), (0, 2, 1))
-            for a in (n, ng):
-                v = np.einsum("kij,kj->ki", normal_m, a[on].astype(np.float64))
-                a[on] = v / np.maximum(np.linalg.norm(v, axis=1, keepdims=True), 1e-30)
+        p, n, ng = p.copy(), n.copy(), ng.copy()
+        motion.carry_forward(history.object_id, history.valid, points=(p,), normals=(n, ng))
     return image_probes(ctx, p, n, ng, history.valid, seed)
 
 

@@ -32,7 +32,7 @@ def temporal_gradients(s):
                               own_surface_glossy=not s.path_reuse, sky_rays=s.sky_on)
         pixels, old, new, valid = redrawn_values(
             s.ctx, history, settings.seed, s.pixel_filter, how,
-            history.index * per_frame if settings.sequences else None)
+            history.index * per_frame if settings.sequences else None, s.motion)
         s.gradient = temporal_gradient(pixels, old, new, valid, s.width, s.height)
         share = kept_share(s.gradient, settings.temporal_M_cap)
         cap_reservoirs(history.temporal, share * np.float32(settings.temporal_M_cap))

@@ -137,6 +137,18 @@ class ObjectMotion:
         """Per-row 4x4 matrices for rows on the given (current) object ids."""
         return self.to_previous[np.maximum(object_id, 0)]
 
+    def carry_forward(self, object_id, valid, points=(), normals=()):
+        """Rows of last frame (object ids ``object_id`` (N,), ``valid`` (N,))
+        that lie on objects that moved since, and their ``points`` and
+        ``normals`` arrays' rows carried to where those objects are now (in
+        place). Returns the rows (K,)."""
+        on = valid & (object_id >= 0)
+        on[on] = self.moved_before[np.clip(object_id[on], 0, len(self.moved_before) - 1)]
+        rows = np.flatnonzero(on)
+        if len(rows):
+            _move_rows(self.to_current[object_id[rows]], rows, points=points, normals=normals)
+        return rows
+
 
 def _move_rows(m, rows, points=(), directions=(), normals=()):
     """Apply the (K, 4, 4) matrices m, one per row index in ``rows``, to

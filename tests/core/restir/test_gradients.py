@@ -8,9 +8,10 @@ from restir_gi.core import RenderContext
 from restir_gi.core.camera.projection import PixelFilter
 from restir_gi.core.restir import ReSTIRGI, ReSTIRSettings
 from restir_gi.core.restir.moved_history import MOVING_CAP
-from restir_gi.core.restir.gradients import (RADIUS, STRATUM, history_frames, kept_share, redrawn_values,
-                                             stratum_pixels, temporal_gradient)
+from restir_gi.core.restir.gradients import (RADIUS, STRATUM, history_frames, kept_share, moved_points,
+                                             redrawn_values, stratum_pixels, temporal_gradient)
 from restir_gi.core.restir.initial import InitialSampling
+from restir_gi.core.restir.temporal import ObjectMotion
 from support.moving_card import SIZE, STANDING, scene_with
 
 SETTINGS = ReSTIRSettings(seed=3, max_bounces=3)
@@ -56,11 +57,11 @@ def test_history_kept_falls_with_lambda():
     assert share[0] == 1.0 and share[-1] == 0.0
 
 
-def redraw(ctx, restir):
+def redraw(ctx, restir, motion=None):
     how = InitialSampling(SETTINGS.max_bounces, SETTINGS.initial_sampling, 1, sky_rays=False)
     h = restir.history
     return redrawn_values(ctx, h, SETTINGS.seed, PixelFilter(ctx.scene.filter_width), how,
-                          h.index if SETTINGS.sequences else None)
+                          h.index if SETTINGS.sequences else None, motion)
 
 
 def test_redrawn_samples_are_last_frames_in_a_still_scene_and_change_near_what_moved():
@@ -85,6 +86,36 @@ def test_redrawn_samples_are_last_frames_in_a_still_scene_and_change_near_what_m
     floor = restir.history.object_id == 0
     assert lam[floor].max() > 0.5
     assert (lam[floor] == 0).mean() > 0.3
+
+
+def test_a_moved_objects_samples_are_drawn_again_where_its_points_went():
+    """Forward projection: a stratum whose point lay on the card is traced
+    to where that point is now and its sample drawn there; the card moved
+    a millimetre, so its values are nearly last frame's."""
+    restir = ReSTIRGI()
+    for f in range(2):
+        ctx = RenderContext.build(scene_with(STANDING, 0.0, patch=True))
+        try:
+            restir.render_frame(ctx, SETTINGS, f)
+        finally:
+            ctx.close()
+    h = restir.history
+    scene = scene_with(STANDING, 0.001, patch=True)
+    motion = ObjectMotion.between(scene, h)
+    ctx = RenderContext.build(scene)
+    try:
+        pixels, old, new, valid = redraw(ctx, restir, motion)
+    finally:
+        ctx.close()
+    card = h.valid[pixels] & (h.object_id[pixels] == 1)
+    assert card.sum() >= 20
+    rows, points = moved_points(h, pixels, h.p[pixels], motion)
+    np.testing.assert_array_equal(rows, np.flatnonzero(card))
+    np.testing.assert_allclose(points - h.p[pixels][rows], [[0.001, 0.0, 0.0]] * len(rows), atol=1e-6)
+    assert valid[card].mean() > 0.9
+    both = card & valid & (np.maximum(old, new) > 0)
+    change = np.abs(new[both] - old[both]) / np.maximum(old[both], new[both])
+    assert np.median(change) < 0.05, np.median(change)
 
 
 def test_far_from_a_moving_object_the_running_means_keep_their_history():
