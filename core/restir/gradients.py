@@ -54,11 +54,15 @@ RADIUS = 5              # window half-size (pixels) of the sums: about 13 re-dra
 GRADIENT_PIXELS = 0x6AD1    # random-number domain of the strata's choice of pixel
 # lambda is the window's relative change times GAIN: a light that changes by
 # a few percent a frame (a box sliding into the sun) gives single sums of
-# 0.01-0.05, under which A-SVGF's alpha' keeps nearly the whole history.
-# corpus_movers, still camera, biased + denoiser, frame 32 MSE with GAIN
-# set to each value (bench/equal_time.py --scenes movers --cameras still
-# --modes biased): 0.1383 at 1, 0.1309 at 4, 0.1285 at 10, 0.1264 at 30.
-GAIN = 10.0
+# 0.01-0.05, under which A-SVGF's alpha' keeps nearly the whole history;
+# where nothing changed the sums are 0 to the bit, so a high gain costs no
+# history there. corpus_movers, still camera, biased + denoiser, frame 32
+# MSE with GAIN set to each value (bench/equal_time.py --scenes movers
+# --cameras still --modes biased): 0.1383 at 1, 0.1309 at 4, 0.1285 at 10,
+# 0.1264 at 30; with the light probes and forward projection, 0.0501 at 10,
+# 0.0469 at 30, 0.0422 at 100, 0.0427 at 1000 (moving camera 0.0548 at 10,
+# 0.0510 at 30).
+GAIN = 100.0
 SAME_POINT = 1e-4       # a re-drawn camera ray's hit within this share of its depth of last frame's
 
 
