@@ -124,10 +124,11 @@ def moved_points(history, pixels, p_then, motion):
     return (rows, moved[rows]) if len(rows) else None
 
 
-def temporal_gradient(pixels, old, new, valid, width, height, radius=RADIUS):
+def temporal_gradient(pixels, old, new, valid, width, height, radius=RADIUS, gain=GAIN):
     """lambda (P,) float32 in [0, 1] per pixel of a width x height image:
-    the relative change of the light around it, from the values ``old`` and
-    ``new`` of the re-drawn samples at ``pixels`` (where ``valid``)."""
+    the relative change of the light around it (times ``gain``), from the
+    values ``old`` and ``new`` of the re-drawn samples at ``pixels`` (where
+    ``valid``), summed over windows of half-size ``radius``."""
     ok = valid & np.isfinite(old) & np.isfinite(new)
     at = pixels[ok]
     a = np.maximum(old[ok], 0.0)
@@ -138,7 +139,7 @@ def temporal_gradient(pixels, old, new, valid, width, height, radius=RADIUS):
     top[at] = np.maximum(a, b)
     num = window_sums(diff, width, height, radius).reshape(-1)
     den = window_sums(top, width, height, radius).reshape(-1)
-    lam = np.where(den > 0, GAIN * num / np.maximum(den, 1e-30), 0.0)
+    lam = np.where(den > 0, gain * num / np.maximum(den, 1e-30), 0.0)
     return np.clip(lam, 0.0, 1.0).astype(np.float32)
 
 

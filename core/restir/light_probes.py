@@ -30,7 +30,7 @@ import numpy as np
 from ..integrators.base import shadow_rays
 from ..sampling import samplers
 from ..util.vectors import dot, luminance
-from ..util.windows import window_sums
+from .gradients import temporal_gradient
 
 PROBE_PIXELS = 0x51C7   # random-number domain of the probes (fixed per pixel, every frame)
 RADIUS = 1              # window half-size of the sums: a pixel and its eight neighbours
@@ -83,12 +83,11 @@ def probes_moved(ctx, history, motion, seed):
     return image_probes(ctx, p, n, ng, history.valid, seed)
 
 
-def light_change(old, new, width, height, radius=RADIUS):
+def light_change(old, new, width, height):
     """lambda (P,) float32 in [0, 1]: the relative change of the probes
-    around each pixel of a width x height image (old, new (P,))."""
-    a = np.maximum(np.nan_to_num(old, nan=0.0, posinf=0.0), 0.0).astype(np.float64)
-    b = np.maximum(np.nan_to_num(new, nan=0.0, posinf=0.0), 0.0).astype(np.float64)
-    num = window_sums(np.abs(b - a), width, height, radius).reshape(-1)
-    den = window_sums(np.maximum(a, b), width, height, radius).reshape(-1)
-    lam = np.where(den > 0, GAIN * num / np.maximum(den, 1e-30), 0.0)
-    return np.clip(lam, 0.0, 1.0).astype(np.float32)
+    around each pixel of a width x height image (old, new (P,); values that
+    are not finite count for nothing), as gradients.temporal_gradient
+    finds it for the re-drawn samples."""
+    n = width * height
+    return temporal_gradient(np.arange(n, dtype=np.int64), old, new, np.ones(n, bool), width, height,
+                             radius=RADIUS, gain=GAIN)
