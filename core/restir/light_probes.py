@@ -64,12 +64,16 @@ def probe_values(ctx, p, n, ng, pixels, seed):
 
 def image_probes(ctx, p, n, ng, valid, seed):
     """(P,) float32 probes of an image's visible points (0 where nothing is
-    seen); p, n, ng (P, 3) full-image rows, valid (P,)."""
-    out = np.zeros(len(valid), np.float32)
-    at = np.flatnonzero(valid)
-    if len(at):
-        out[at] = probe_values(ctx, p[at], n[at], ng[at], at, seed)
-    return out
+    seen); p, n, ng (P, 3) full-image rows, valid (P,). Over pixel ranges on
+    the context's workers."""
+    def part(a, b):
+        out = np.zeros(b - a, np.float32)
+        at = np.flatnonzero(valid[a:b]) + a
+        if len(at):
+            out[at - a] = probe_values(ctx, p[at], n[at], ng[at], at, seed)
+        return out
+
+    return ctx.workers.map_into(part, len(valid))
 
 
 def probes_moved(ctx, history, motion, seed):

@@ -90,3 +90,19 @@ def test_a_moved_objects_probes_ride_with_it():
         ctx.close()
     assert card.sum() > 20
     np.testing.assert_allclose(new[card], direct[card], rtol=1e-4, atol=1e-6)
+
+
+def test_probes_are_the_same_however_the_pixels_are_split():
+    restir = run(OCCLUDER, [0.0, 0.1])
+    h = restir.history
+    images = []
+    for threads, max_range in ((1, None), (2, 997)):
+        ctx = RenderContext.build(scene_with(OCCLUDER, 0.1), threads=threads, processes=False)
+        if max_range:
+            ctx.workers.max_range = max_range
+        try:
+            images.append(image_probes(ctx, h.p, h.n, h.ng, h.valid, SETTINGS.seed))
+        finally:
+            ctx.close()
+    np.testing.assert_array_equal(images[0], images[1])
+    np.testing.assert_array_equal(images[0], h.light_probe)
