@@ -352,3 +352,24 @@ def test11_passes_in_the_multilayer_exr(addon, tmp_path, mode, denoise):
         np.testing.assert_allclose(combined[left][..., :3].reshape(-1, 3).mean(axis=0),
                                    noisy[left][..., :3].reshape(-1, 3).mean(axis=0), rtol=0.03)
         assert not np.array_equal(combined[left], noisy[left])
+
+
+def test_short_histories_get_the_energy_the_filter_lost_back():
+    """kept_energy: where a pixel's history is short, the filtered light's
+    window mean is brought back to the unfiltered one's (within
+    ENERGY_RANGE); long histories and pixels that see nothing keep 1."""
+    from restir_gi.core.restir.denoise import ENERGY_RANGE, SHORT_HISTORY_ENERGY, kept_energy
+    w, h = 24, 16
+    n = w * h
+    raw = np.full(n, 2.0, np.float32)
+    lost = np.full(n, 1.8, np.float32)           # the filter kept 90 %
+    frames = np.where(np.arange(n) % w < 12, 1.0, 2 * SHORT_HISTORY_ENERGY).astype(np.float32)
+    valid = np.ones(n, bool)
+    valid[5] = False
+    factor = np.concatenate([kept_energy(raw, (lost, lost, lost), frames, valid, w, h, a, b)
+                             for a, b in ((0, 5), (5, 6), (6, h))])      # (ranges of rows)
+    short = valid & (frames < SHORT_HISTORY_ENERGY)
+    np.testing.assert_allclose(factor[short], 2.0 / 1.8, rtol=1e-5)
+    np.testing.assert_array_equal(factor[~short], 1.0)
+    far = kept_energy(raw, (raw * 0.1,) * 3, frames, valid, w, h, 0, h)
+    assert far[short].max() == np.float32(ENERGY_RANGE[1])
