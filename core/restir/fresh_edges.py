@@ -24,6 +24,7 @@ import numpy as np
 
 from ..util.vectors import luminance
 from .accumulation import LIGHT_FRAMES
+from .adaptive_direct import neighbourhood_range
 
 FRESH_FRAMES = 2.0      # the direct light's mean holds at most this many frames
 EDGE_SPAN = 0.3         # the 3x3 neighbourhood's direct light spans more than this share of its top
@@ -43,23 +44,17 @@ def fresh_edge_direct(data, valid, width, height, r0, r1):
     direct = direct.reshape(h, width, 3)
     ok = valid[a0 * width:a1 * width].reshape(h, width)
     v = ok.astype(np.float64)
-    lum = np.where(ok, luminance(direct.reshape(-1, 3)).reshape(h, width), np.nan)
     pd = np.pad(direct * v[..., None], ((1, 1), (1, 1), (0, 0)))
     pv = np.pad(v, 1)
-    pl = np.pad(lum, 1, constant_values=np.nan)
     total = np.zeros_like(direct)
     weight = np.zeros_like(v)
-    hi = np.full_like(v, -np.inf)
-    lo = np.full_like(v, np.inf)
     for dy in range(3):
         for dx in range(3):
             tent = (2 - abs(dy - 1)) * (2 - abs(dx - 1))
             total += tent * pd[dy:dy + h, dx:dx + width]
             weight += tent * pv[dy:dy + h, dx:dx + width]
-            near = pl[dy:dy + h, dx:dx + width]
-            seen = np.isfinite(near)
-            np.maximum(hi, np.where(seen, near, -np.inf), out=hi)
-            np.minimum(lo, np.where(seen, near, np.inf), out=lo)
+    hi, lo = (x.reshape(h, width) for x in neighbourhood_range(luminance(direct.reshape(-1, 3)), ok.ravel(),
+                                                               width, h))
     frames = rows[:, LIGHT_FRAMES].reshape(h, width)
     fresh = ok & (frames <= FRESH_FRAMES) & (hi - lo > EDGE_SPAN * np.maximum(hi, 1e-30))
     out = np.where(fresh[..., None], total / np.maximum(weight, 1e-30)[..., None], direct)
