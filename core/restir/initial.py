@@ -162,6 +162,66 @@ class InitialSampling:
     sky_rays: bool = False
 
 
+def first_uniforms(seed, ids, seeds, stream_index):
+    """(u_lobe (N,), u (N, 2), u_light) of the first bounce of visible points
+    of pixel ids (N,) and path seeds (N,): with a stream_index (the sample's
+    place in its image stream) from each pixel's sequences
+    (samplers.first_bounce_uniforms; u_light their light uniforms), else the
+    seeds' own (u_light None: the light sampler draws from the seeds)."""
+    if stream_index is None:
+        u_lobe = samplers.uniform(seeds, samplers.bounce_dim(0, samplers.D_LOBE))
+        u = samplers.uniform2(seeds, samplers.bounce_dim(0, samplers.D_BSDF_UV))
+        return u_lobe, u, None
+    (u_lobe, u), u_light = samplers.first_bounce_uniforms(samplers.hash_keys(seed, ids, STREAM_SAMPLE), stream_index)
+    return u_lobe, u, u_light
+
+
+def nee_direct(ctx, surf, frame_sh, seeds, u_light, sampling, light_samples):
+    """The next-event part of the direct light of visible points (surf,
+    frame_sh: their SurfaceHits and ShadingFrame; seeds (N,) and u_light
+    their uniforms, first_uniforms): (N, 3), and the light samples of each
+    point (N,) float32. light_samples: one count for all or (N,) counts;
+    each NEE sample is weighed against the initial direction sampler
+    (``sampling``) as that many samples of the light strategy, so the
+    emitters the sample ray finds complete it (initial_samples)."""
+    params, wo_l = frame_sh.params, frame_sh.wo_local
+    lights = ctx.lights
+    # light_samples per point spread evenly over light choice and light
+    # surfaces (stratified), all in one batch.
+    counts = np.broadcast_to(np.maximum(np.asarray(light_samples, np.int64), 1), (len(seeds),))
+    # With k light samples a point weighs each against its one BSDF-sampled
+    # ray as k samples of the light strategy (Veach's n_i p_i): near a bright
+    # emitter the BSDF ray kept the weight of a single light sample, and more
+    # light samples left its noise as it was (the room of small emitters:
+    # 16 light samples a point, direct light's variance 0.12 -> 0.108).
+    countf = counts.astype(np.float32)
+    # Suns apart (LightSet.nee_sets): a sample of each sun besides one of the
+    # other emitters; BSDF rays weigh what they find against the first set.
+    nee = lights.nee_sets()
+    d = _direct(ctx, surf, frame_sh, seeds, u_light, params, wo_l, sampling, countf, nee, lights)
+    extra = counts - 1
+    if extra.any():
+        # Samples k = 1 .. count - 1 of the points that take more; sample 0 is
+        # the one above (the stratified pattern starts at the origin, so its
+        # first point is exactly sample 0's uniforms).
+        rep = np.repeat(np.arange(len(seeds)), extra)
+        k = np.arange(len(rep)) - np.repeat(np.cumsum(extra) - extra, extra) + 1
+        if u_light is None:
+            s_sel = samplers.uniform(seeds[rep], samplers.bounce_dim(0, samplers.D_LIGHT_SELECT))
+            s_uv = samplers.uniform2(seeds[rep], samplers.bounce_dim(0, samplers.D_LIGHT_UV))
+        else:
+            s_sel, s_uv = u_light[0][rep], gather(u_light[1], rep)
+        u_light = samplers.stratified_light_uniforms(k, counts[rep], s_sel, s_uv)
+        surf_k, frame_k = surf.subset(rep), frame_sh.subset(rep)
+        params_k, wo_k = frame_k.params, frame_k.wo_local
+        more = _direct(ctx, surf_k, frame_k, seeds[rep], u_light, params_k, wo_k, sampling, countf[rep],
+                       nee, lights)
+        for c in range(3):
+            d[:, c] += np.bincount(rep, weights=more[:, c], minlength=len(seeds)).astype(np.float32)
+        d = scale(d, 1.0 / countf)
+    return d, countf
+
+
 def initial_samples(ctx, gb, seed, frame, sample, how, stream_index=None):
     """Reservoirs (one per pixel, empty where nothing was hit) holding each
     pixel's new sample; the direct light of each pixel (P, 3), estimated
@@ -187,13 +247,7 @@ def initial_samples(ctx, gb, seed, frame, sample, how, stream_index=None):
     params, wo_l = frame_sh.params, frame_sh.wo_local
 
     # Direction: hemisphere warp, or the BSDF for glossy materials.
-    if stream_index is None:
-        u_lobe = samplers.uniform(seeds, samplers.bounce_dim(0, samplers.D_LOBE))
-        u = samplers.uniform2(seeds, samplers.bounce_dim(0, samplers.D_BSDF_UV))
-        u_light = None
-    else:
-        (u_lobe, u), u_light = samplers.first_bounce_uniforms(
-            samplers.hash_keys(seed, gb.ids(index), STREAM_SAMPLE), stream_index)
+    u_lobe, u, u_light = first_uniforms(seed, gb.ids(index), seeds, stream_index)
     wi_l = square_to_uniform_hemisphere(u) if sampling == UNIFORM else square_to_cosine_hemisphere(u)
     glossy = _bsdf_sampled(params)
     by_kind = getattr(ctx.accel, "per_kind_visibility", False)
@@ -218,41 +272,10 @@ def initial_samples(ctx, gb, seed, frame, sample, how, stream_index=None):
     weight = np.nan_to_num(weight, nan=0.0, posinf=0.0, neginf=0.0)
     weight = scale(weight, ok.astype(np.float32)).astype(np.float32)
 
-    # Direct light: NEE weighted against this very sampler, with light_samples
-    # per point spread evenly over light choice and light surfaces (stratified),
-    # all in one batch ...
+    # Direct light: NEE weighted against this very sampler (nee_direct) ...
     lights = ctx.lights
-    counts = np.broadcast_to(np.maximum(np.asarray(light_samples, np.int64), 1), (len(index),))
-    # With k light samples a point weighs each against its one BSDF-sampled
-    # ray as k samples of the light strategy (Veach's n_i p_i): near a bright
-    # emitter the BSDF ray kept the weight of a single light sample, and more
-    # light samples left its noise as it was (the room of small emitters:
-    # 16 light samples a point, direct light's variance 0.12 -> 0.108).
-    countf = counts.astype(np.float32)
-    # Suns apart (LightSet.nee_sets): a sample of each sun besides one of the
-    # other emitters; BSDF rays weigh what they find against the first set.
     nee = lights.nee_sets()
-    d = _direct(ctx, surf, frame_sh, seeds, u_light, params, wo_l, sampling, countf, nee, lights)
-    extra = counts - 1
-    if extra.any():
-        # Samples k = 1 .. count - 1 of the points that take more; sample 0 is
-        # the one above (the stratified pattern starts at the origin, so its
-        # first point is exactly sample 0's uniforms).
-        rep = np.repeat(np.arange(len(index)), extra)
-        k = np.arange(len(rep)) - np.repeat(np.cumsum(extra) - extra, extra) + 1
-        if u_light is None:
-            s_sel = samplers.uniform(seeds[rep], samplers.bounce_dim(0, samplers.D_LIGHT_SELECT))
-            s_uv = samplers.uniform2(seeds[rep], samplers.bounce_dim(0, samplers.D_LIGHT_UV))
-        else:
-            s_sel, s_uv = u_light[0][rep], gather(u_light[1], rep)
-        u_light = samplers.stratified_light_uniforms(k, counts[rep], s_sel, s_uv)
-        surf_k, frame_k = surf.subset(rep), frame_sh.subset(rep)
-        params_k, wo_k = frame_k.params, frame_k.wo_local
-        more = _direct(ctx, surf_k, frame_k, seeds[rep], u_light, params_k, wo_k, sampling, countf[rep],
-                       nee, lights)
-        for c in range(3):
-            d[:, c] += np.bincount(rep, weights=more[:, c], minlength=len(index)).astype(np.float32)
-        d = scale(d, 1.0 / countf)
+    d, countf = nee_direct(ctx, surf, frame_sh, seeds, u_light, sampling, light_samples)
 
     rows = np.nonzero(ok)[0]
     wi_r, weight_r = gather(wi, rows), gather(weight, rows)
