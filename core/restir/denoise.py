@@ -36,9 +36,9 @@ the light's variance over the pixel's history. Here:
    neighbours gave it little weight and the filter darkened skewed noise.
 4. Where the history is short, the filtered light's local energy brought
    back to the unfiltered means' (kept_energy). Remodulation by the
-   albedo, plus the direct light and the radiance seen
-   directly; the direct light of pixels whose history just restarted, at
-   sharp edges of light, filtered over their 3x3 pixels (fresh_edges.py).
+   albedo, plus the direct light and the radiance seen directly (where
+   the direct light's history just restarted at its edges, the frame took
+   more camera rays for it: edge_direct.py).
 
 Every step is a whole-image pass over pixel ranges (core/workers/parallel.py). A
 range computes the image rows it touches; the taps read neighbouring rows
@@ -58,8 +58,8 @@ import numpy as np
 from ..util.vectors import luminance
 from ..util.windows import window_sums
 from .accumulation import COLUMNS
+from .adaptive_direct import neighbourhood_range
 from .edge_filter import Image, atrous, depth_gradient, surface_blur, variance
-from .fresh_edges import fresh_edge_direct
 
 MOMENTS = 2                 # columns of the running means: mean luminance of the
                             # demodulated light, and mean of its square
@@ -79,6 +79,7 @@ ITERATIONS = 5              # a-trous steps 1, 2, 4, 8, 16
 SHORT_HISTORY_ENERGY = 8.0
 ENERGY_RADIUS = 8           # window half-size (pixels) of the energy's sums
 ENERGY_RANGE = (0.8, 1.25)  # the factor is kept within this range
+FIREFLY_RATIO = 2.0         # short histories: at most this x the brightest neighbour (0: off)
 M1, M2 = COLUMNS, COLUMNS + 1  # the moments' columns
 
 
@@ -143,6 +144,15 @@ def denoise(workers, data, depth, valid, width, height, iterations=ITERATIONS, t
 
     red, green, blue, lum, nx, ny, nz, z, m1, m2, count = workers.map_into(run(prepare), n)
     frames = count
+    raw = lum
+    if FIREFLY_RATIO > 0:
+        def clamp(a, b):
+            r0, r1 = a // width, (b - 1) // width + 1
+            lo, hi = a - r0 * width, b - r0 * width
+            k = firefly_factor(lum, frames, valid, width, height, r0, r1)[lo:hi]
+            return red[a:b] * k, green[a:b] * k, blue[a:b] * k, lum[a:b] * k
+
+        red, green, blue, lum = workers.map_into(run(clamp), n)
     nimg = np.stack([nx, ny, nz]).reshape(3, *shape)
     zimg = z.reshape(shape)
     moments = [m1.reshape(shape), m2.reshape(shape), count.reshape(shape)]
@@ -164,7 +174,6 @@ def denoise(workers, data, depth, valid, width, height, iterations=ITERATIONS, t
     gimg = (gx.reshape(shape), gy.reshape(shape))
 
     # 3. The a-trous iterations.
-    raw = lum
     for i in range(iterations):
         step = 1 << i
         last = i == iterations - 1
@@ -188,10 +197,28 @@ def denoise(workers, data, depth, valid, width, height, iterations=ITERATIONS, t
         c = np.stack([red[a:b], green[a:b], blue[a:b]], axis=1)
         if iterations:
             c *= kept_energy(raw, (red, green, blue), frames, valid, width, height, r0, r1)[lo:hi, None]
-        direct = fresh_edge_direct(data, valid, width, height, r0, r1)[lo:hi]
-        return remodulate(c, data[a:b], valid[a:b], direct)
+        return remodulate(c, data[a:b], valid[a:b])
 
     return workers.map_into(run(finish), n)
+
+
+def firefly_factor(lum, frames, valid, width, height, r0, r1):
+    """(rows r0..r1 of the image x width,) float32: the factor that brings
+    the demodulated light of a pixel whose history is shorter than
+    SHORT_HISTORY_ENERGY frames down to FIREFLY_RATIO x the brightest of its
+    8 neighbours that see a surface (1 elsewhere). lum, frames, valid: (P,)
+    of the whole image."""
+    a0, a1 = max(r0 - 1, 0), min(r1 + 1, height)
+    rows = slice(a0 * width, a1 * width)
+    mx, _ = neighbourhood_range(lum[rows], valid[rows], width, a1 - a0, centre=False)
+    own = slice((r0 - a0) * width, (r1 - a0) * width)
+    mx, x = mx[own], lum[r0 * width:r1 * width]
+    cut = FIREFLY_RATIO * np.maximum(mx, 0.0)
+    hot = valid[r0 * width:r1 * width] & (frames[r0 * width:r1 * width] < SHORT_HISTORY_ENERGY) \
+        & np.isfinite(mx) & (x > cut)
+    factor = np.ones(len(x), np.float32)
+    factor[hot] = cut[hot] / x[hot]
+    return factor
 
 
 def kept_energy(raw, filtered, frames, valid, width, height, r0, r1):
@@ -225,13 +252,13 @@ def _albedo(rows):
     return _clip_albedo(rows[:, 6:9])
 
 
-def remodulate(c, rows, valid, direct=None):
+def remodulate(c, rows, valid):
     """(N, 3) float32 colour of filtered demodulated indirect light c (N, 3)
     for the running means' rows (N, columns): c times the albedo plus the
-    direct light (``direct`` (N, 3), or the rows' own) and the radiance seen
-    directly; rows that see no surface keep their means."""
+    direct light and the radiance seen directly; rows that see no surface
+    keep their means."""
     out = np.where(valid[:, None], c * _albedo(rows), _finite(rows[:, 3:6]))
-    out += _finite(rows[:, 0:3] if direct is None else direct)
+    out += _finite(rows[:, 0:3])
     out += _finite(rows[:, 14:17])
     return out.astype(np.float32, copy=False)
 

@@ -58,6 +58,7 @@ from .shift import target_at
 from .sky import pixel_shares, point_plan, visible_sky_light
 from .spatial import CarriedSpatial, SpatialReuse, shared_terms, spatial_resample
 from .silhouettes import refine_edges
+from .edge_direct import refine_direct_edges
 from .temporal import FrameHistory, reproject, temporal_resample
 from .timings import Timings, stage
 
@@ -245,7 +246,6 @@ def between_passes(s):
                                  settings.edge_samples, s.index)
     s.timings.spent("gbuffer", t)
     s.img = FrameImage(one.valid, one.depth, one.object_id, one.p, one.n, one.ng, s.width, s.height)
-    s.gate = light_range(one.lum_direct, one.valid, s.width, s.height) if s.moved else None
     s.still_view = history is not None and not s.moved and same_view(ctx.scene.camera, history.camera)
     # Pixels on geometric edges read their running means' history from every
     # tap (reprojection.previous_pixels): on a moving view, a history of their
@@ -280,6 +280,14 @@ def between_passes(s):
             restart(s.prev_acc)
         elif s.forget_old:
             forget_where_changed(s)
+    if s.moved and s.accumulating and s.prev_acc is not None and max(1, settings.samples) == 1:
+        with stage("direct edges"):
+            t = time.perf_counter()
+            refine_direct_edges(ctx, settings.seed, s.frame, s.pixel_filter, one, s.prev_acc, s.index,
+                                settings.sequences, InitialSampling(settings.max_bounces, settings.initial_sampling,
+                                                                    settings.light_samples))
+            s.timings.spent("gbuffer", t)
+    s.gate = light_range(one.lum_direct, one.valid, s.width, s.height) if s.moved else None
 
 
 def second_pass(s):

@@ -54,9 +54,10 @@ class Builder:
         return np.concatenate(self.v), np.concatenate(self.t), np.concatenate(self.m)
 
 
-def cornell_box(light="emitter", width=64, height=64, emission=15.0, power=100.0):
+def cornell_box(light="emitter", width=64, height=64, emission=15.0, power=100.0, radius=0.05):
     """The Cornell box of the example blends: x, y in [-1, 1], z in [0, 2], open
-    toward the camera at -y. light: 'emitter' (quad), 'point' or 'area'."""
+    toward the camera at -y. light: 'emitter' (quad), 'point' (of ``radius``)
+    or 'area'."""
     mats = [
         {"name": "white", "base_color": (0.8, 0.8, 0.8)},
         {"name": "red", "base_color": (0.8, 0.1, 0.1)},
@@ -76,7 +77,7 @@ def cornell_box(light="emitter", width=64, height=64, emission=15.0, power=100.0
         b.add(*quad((-0.25, -0.25, 1.98), (0.5, 0, 0), (0, 0.5, 0)), 3)
     elif light == "point":
         lights = Lights.from_list([{"kind": LIGHT_POINT, "position": (0, 0, 1.8), "power": (power,) * 3,
-                                    "radius": 0.05}])
+                                    "radius": radius}])
     elif light == "area":
         lights = Lights.from_list([{"kind": LIGHT_AREA, "position": (0, 0, 1.98), "direction": (0, 0, -1),
                                     "power": (power,) * 3, "size_u": 0.5, "size_v": 0.5}])

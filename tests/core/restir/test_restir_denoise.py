@@ -191,8 +191,7 @@ def test05_no_iterations_give_the_means_back(rng):
 
 def test06_direct_light_and_what_is_seen_directly_stay_sharp(rng):
     """Only the indirect light is filtered: noise in the direct light and
-    in the radiance seen directly comes out as it went in (their histories
-    are not fresh: fresh_edges.py)."""
+    in the radiance seen directly comes out as it went in."""
     n = W * H
     direct = rng.exponential(1.0, (n, 3)).astype(np.float32)
     seen = rng.exponential(0.5, (n, 3)).astype(np.float32)
@@ -373,3 +372,32 @@ def test_short_histories_get_the_energy_the_filter_lost_back():
     np.testing.assert_array_equal(factor[~short], 1.0)
     far = kept_energy(raw, (raw * 0.1,) * 3, frames, valid, w, h, 0, h)
     assert far[short].max() == np.float32(ENERGY_RANGE[1])
+
+
+def test_a_lone_bright_pixel_of_short_history_is_spread_not_kept():
+    """firefly_factor: a pixel of short history brighter than FIREFLY_RATIO x
+    its brightest neighbour is brought down to that (whatever the split
+    into rows); long histories and milder pixels keep 1. Through the
+    denoiser, the pixel's energy stays in its window (kept_energy)."""
+    from restir_gi.core.restir.denoise import FIREFLY_RATIO, SHORT_HISTORY_ENERGY, firefly_factor
+    n = W * H
+    lum = np.full(n, 1.0, np.float32)
+    hot, mild, old = 20 * W + 30, 10 * W + 10, 30 * W + 40
+    lum[[hot, old]] = 50.0
+    lum[mild] = 0.9 * FIREFLY_RATIO
+    frames = np.ones(n, np.float32)
+    frames[old] = 2 * SHORT_HISTORY_ENERGY
+    valid = np.ones(n, bool)
+    factor = np.concatenate([firefly_factor(lum, frames, valid, W, H, a, b) for a, b in ((0, 20), (20, 21), (21, H))])
+    assert factor[hot] == pytest.approx(FIREFLY_RATIO / 50.0)
+    factor[hot] = 1.0
+    np.testing.assert_array_equal(factor, 1.0)
+    # Through the denoiser: a grey plane of one-frame histories, one pixel
+    # 50x brighter. The pixel comes out near the plane's 0.5 (0.77 without
+    # the clamp); the image keeps its energy.
+    light = np.full((n, 3), 0.5, np.float32)
+    light[hot] = 25.0
+    data = means(light, np.full((n, 3), 1.0, np.float32), count=1.0)
+    out = run(data, np.full(n, 4.0, np.float32))
+    assert out[hot].mean() < 0.65
+    assert out.mean() == pytest.approx(light.mean(), rel=0.05)
