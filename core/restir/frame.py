@@ -62,6 +62,7 @@ from .edge_direct import refine_direct_edges
 from .temporal import FrameHistory, reproject, temporal_resample
 from .timings import Timings, stage
 
+MOVING_NEIGHBORS = 1      # spatial neighbours more on objects that moved, per neighbour
 MOVING_M_CAP = 4.0  # M cap of the reservoirs of pixels on objects that moved: a moving
                     # object's light changes as it moves, and with the usual caps its
                     # reservoirs lagged (tests/core/restir/test_restir_moving_objects.py)
@@ -322,10 +323,14 @@ def _spatial(s, a, b):
     # MSE -15 %, glossy -1 %, emitters 0, room +2 %, slit room +9 %;
     # docs/validation.md).
     radius = settings.spatial_radius * (settings.still_radius_scale if s.still_view else 1.0)
-    reuse = SpatialReuse(settings.spatial_neighbors, radius, s.biased)
+    # Pixels on objects that moved hold at most MOVING_M_CAP frames in their
+    # reservoirs: they draw as many neighbours again (biased mode).
+    reuse = SpatialReuse(settings.spatial_neighbors, radius, s.biased, MOVING_NEIGHBORS * settings.spatial_neighbors)
     carried = None if prev_spatial is None else CarriedSpatial(prev_spatial, prev_owner)
+    oid = img.object_id[a:b]
+    more = None if s.motion is None else s.motion.moved_now[np.maximum(oid, 0)] & (oid >= 0)
     spatial, visible_own, from_prev = spatial_resample(s.ctx, img, s.temporal, s.seeds, reuse, carried,
-                                                       rows=(a, b), shared=s.shared)
+                                                       rows=(a, b), shared=s.shared, more=more)
     known = None
     if s.carry and s.static and visible_own is None:
         known = carried_visibility(np.take(history.visibility, q), from_prev, prev_owner, img.p[a:b], spatial.x2)

@@ -64,6 +64,7 @@ class SpatialReuse(NamedTuple):
     neighbors: int          # k neighbours per pixel
     radius: float           # of the disk they are drawn in, pixels
     biased: bool            # biased (W = w_sum / (Z p_hat), domain_confidence) or unbiased (pairwise MIS)
+    more: int = 0           # neighbours more for the pixels spatial_resample's ``more`` flags (biased)
 
 
 class CarriedSpatial(NamedTuple):
@@ -72,7 +73,7 @@ class CarriedSpatial(NamedTuple):
     owner_p: np.ndarray     # (n, 3) the visible points that held them
 
 
-def spatial_resample(ctx, gb, temporal, seeds, reuse, carried=None, rows=None, shared=None):
+def spatial_resample(ctx, gb, temporal, seeds, reuse, carried=None, rows=None, shared=None, more=None):
     """Spatial reservoirs of this frame; (unbiased mode) the visibility of each
     pixel's chosen sample from its own visible point, for final shading; and
     where the chosen sample is last frame's spatial reservoir's.
@@ -81,8 +82,10 @@ def spatial_resample(ctx, gb, temporal, seeds, reuse, carried=None, rows=None, s
     (all by default; a worker's share), whose own arrays are sliced from the
     whole-image inputs; neighbours come from the whole image. carried:
     CarriedSpatial of those rows, or None. shared: shared_terms(temporal,
-    biased), if the caller has it (workers share one)."""
-    k, radius, biased = reuse
+    biased), if the caller has it (workers share one). more: (n,) bool of
+    the range's pixels, those that draw reuse.more neighbours more (biased
+    mode), or None."""
+    k, radius, biased = reuse.neighbors, reuse.radius, reuse.biased
     prev_spatial, prev_owner_p = carried if carried is not None else (None, None)
     a, b = rows if rows is not None else (0, len(gb.valid))
     w, h = gb.width, gb.height
@@ -114,27 +117,45 @@ def spatial_resample(ctx, gb, temporal, seeds, reuse, carried=None, rows=None, s
     # per neighbour, the rest only for the winners.
     if shared is None:
         shared = shared_terms(temporal, biased)
-    for i in range(k):
-        ctx.accel.poll()
-        u = samplers.uniform2(seeds, D_SPATIAL + 2 + 3 * i)
+    def neighbour(i, sel):
+        """Candidate of draw i for the rows sel (None: all; elsewhere M 0)."""
+        at = (lambda x: x) if sel is None else (lambda x: x[sel])
+        u = samplers.uniform2(at(seeds), D_SPATIAL + 2 + 3 * i)
         r = radius * np.sqrt(u[:, 0])
         phi = 2.0 * np.pi * u[:, 1]
-        nx = np.clip(np.rint(px + r * np.cos(phi)), 0, w - 1).astype(np.int64)
-        ny = np.clip(np.rint(py + r * np.sin(phi)), 0, h - 1).astype(np.int64)
+        nx = np.clip(np.rint(at(px) + r * np.cos(phi)), 0, w - 1).astype(np.int64)
+        ny = np.clip(np.rint(at(py) + r * np.sin(phi)), 0, h - 1).astype(np.int64)
         nb = ny * w + nx
         nrm_nb = gather(nrm_all, nb)
-        ok = valid & np.take(gb.valid, nb) & (nb != pix)
-        ok &= dot(nrm, nrm_nb) >= NORMAL_COS_MIN
-        ok &= np.abs(np.take(gb.depth, nb) - depth) <= DEPTH_REL_MAX * depth
+        ok = at(valid) & np.take(gb.valid, nb) & (nb != at(pix))
+        ok &= dot(at(nrm), nrm_nb) >= NORMAL_COS_MIN
+        ok &= np.abs(np.take(gb.depth, nb) - at(depth)) <= DEPTH_REL_MAX * at(depth)
         p_nb = gather(p_all, nb)
         m = np.where(ok, np.take(temporal.M, nb), 0.0).astype(np.float32)
+        weight = None       # (unbiased: pairwise MIS weights, below, once every neighbour is known)
         if biased:
             weight = shift_weight_of(gather(temporal.x2, nb), temporal.field("ng2", nb), np.take(shared, nb),
-                                     p_nb, p, ng, nrm, biased)
+                                     p_nb, at(p), at(ng), at(nrm), biased)
             weight *= ok
-        else:
-            weight = None       # pairwise MIS weights, below, once every neighbour is known
-        candidates.append(Candidate(temporal, nb, weight, m, p_nb, gather(ng_all, nb), nrm_nb, p_nb))
+        if sel is None:
+            return Candidate(temporal, nb, weight, m, p_nb, gather(ng_all, nb), nrm_nb, p_nb)
+        full_nb = pix.copy()
+        full_nb[sel] = nb
+        full_m = np.zeros(len(pix), np.float32)
+        full_m[sel] = m
+        full_w = np.zeros(len(pix), np.float32)
+        full_w[sel] = weight
+        p_full = gather(p_all, full_nb)
+        return Candidate(temporal, full_nb, full_w, full_m, p_full, gather(ng_all, full_nb),
+                         gather(nrm_all, full_nb), p_full)
+
+    for i in range(k):
+        ctx.accel.poll()
+        candidates.append(neighbour(i, None))
+    busy = np.flatnonzero(more) if (more is not None and biased and reuse.more > 0) else ()
+    for i in range(k, k + reuse.more if len(busy) else k):
+        ctx.accel.poll()
+        candidates.append(neighbour(i, busy))
     if not biased:
         targets = _pairwise_weights(ctx, temporal, shared, own, candidates, p, ng, nrm)
 
@@ -198,8 +219,14 @@ def domain_confidence(res, candidates):
         if cand.owner_p is receiver:    # found here: the pixel's own reservoirs, temporal and carried
             z += cand.M
             continue
-        p_r, _j = shift_target(res.x2, res.ng2, one, receiver, cand.owner_p, cand.ng, cand.ns)
-        z += np.where((p_r > 0) & res.has_sample, cand.M, 0.0).astype(np.float32)
+        live = np.flatnonzero((cand.M > 0) & res.has_sample)     # (the rest adds nothing)
+        if len(live) == len(z):
+            p_r, _j = shift_target(res.x2, res.ng2, one, receiver, cand.owner_p, cand.ng, cand.ns)
+            z += np.where(p_r > 0, cand.M, 0.0).astype(np.float32)
+        elif len(live):
+            p_r, _j = shift_target(gather(res.x2, live), gather(res.ng2, live), one[live], gather(receiver, live),
+                                   gather(cand.owner_p, live), gather(cand.ng, live), gather(cand.ns, live))
+            z[live] += np.where(p_r > 0, cand.M[live], 0.0).astype(np.float32)
     return z
 
 

@@ -267,3 +267,33 @@ def test08_a_still_view_reuses_nearer_neighbours(monkeypatch):
             ctx.close()
     print(f"radii per frame: {poses}")
     assert poses == [{12.0}, {6.0}, {6.0}, {12.0}, {6.0}]
+
+
+def test09_flagged_pixels_draw_more_neighbours():
+    """SpatialReuse.more: the pixels ``more`` flags (those on objects that
+    moved, in the frame) take that many neighbours more, the first k being
+    the unflagged draw's own; the others' reservoirs are the same bits; the
+    unbiased mode draws no more."""
+    img = plane_image()
+    x = np.arange(W * H) % W
+    temporal = samples_above(img, 1.0 + (x * 7 % 11))
+    seeds = samplers.path_seeds(3, 0, np.arange(W * H), 0)
+    flagged = (np.arange(W * H) // W) % 2 == 0
+
+    def run(more, extra, biased=True):
+        reuse = SpatialReuse(4, 16.0, biased, extra)
+        return spatial_resample(NO_RAYS if biased else far, img, temporal, seeds, reuse, more=more,
+                                shared=shared_terms(temporal, biased))[0]
+
+    base, wide = run(None, 0), run(flagged, 4)
+    for name in Reservoirs.SAMPLE_FIELDS + ("w_sum", "M", "W"):
+        assert np.array_equal(getattr(base, name)[~flagged], getattr(wide, name)[~flagged]), name
+    # Every neighbour on the plane is accepted but the pixel itself (drawn
+    # now and then near the centre of the disk): M 1 + 4, or 1 + 8.
+    assert base.M.mean() > 4.9 and wide.M[flagged].mean() > 8.8
+    assert (wide.M[flagged] >= base.M[flagged] + 3).all()
+    far = far_away_ctx()
+    try:
+        assert np.array_equal(run(flagged, 4, False).M, run(None, 0, False).M)
+    finally:
+        far.close()
