@@ -34,9 +34,11 @@ from .gradients import temporal_gradient
 
 PROBE_PIXELS = 0x51C7   # random-number domain of the probes (fixed per pixel, every frame)
 RADIUS = 1              # window half-size of the sums: a pixel and its eight neighbours
-# A probe is exact, so any change is real light: a tenth of the light lost
-# or gained in a frame restarts the running mean.
-GAIN = 10.0
+# A probe is exact, so any change is real light: a hundredth of the light
+# lost or gained over the window in a frame restarts the running mean.
+# corpus_movers (still camera, frame 32, biased + denoiser): MSE 0.02114 at
+# 10, 0.02073 at 30, 0.02025 at 100, 0.02018 at 1000.
+GAIN = 100.0
 
 
 def probe_values(ctx, p, n, ng, pixels, seed):
