@@ -115,8 +115,8 @@ def refine_direct_edges(ctx, seed, frame, pixel_filter, first, prev_acc, stream_
     """The direct light of ``first`` (FirstPass: its direct and lum_direct,
     in place) at the edge pixels whose history is short (above); prev_acc:
     last frame's running means as this frame reads them (Accumulation).
-    stream_index, sequences: as own_nee's. how: the InitialSampling of the frame's one initial sample. Returns the
-    pixels refined."""
+    stream_index, sequences: as own_nee's. how: the InitialSampling of the
+    frame's one initial sample. Returns the pixels refined."""
     scene = ctx.scene
     if pixel_filter.dist is None or prev_acc is None:
         return np.zeros(0, np.int64)
