@@ -41,7 +41,7 @@ from ..util.rows import scatter
 from ..util.vectors import luminance
 from .accumulation import LIGHT_FRAMES
 from .adaptive_direct import light_sample_counts, neighbourhood_range
-from .gbuffer import camera_rays, stream_jitter, trace_rows
+from .gbuffer import pixel_rays, trace_rows
 from .initial import first_uniforms, nee_direct
 
 SHORT_FRAMES = 4.0      # the direct light's history holds at most this many frames
@@ -94,12 +94,8 @@ def own_nee(ctx, seed, frame, pixel_filter, pixels, stream_index, sequences, cou
 def mean_nee(ctx, seed, frame, pixel_filter, pixels, stream_index, counts, sampling, samples):
     """(E, 3) mean of E(x_k) over ``samples`` camera rays in each of pixels
     (E,); counts (E,) their light sample counts (the MIS weights' n)."""
-    rep = np.repeat(np.asarray(pixels, np.int64), samples)
-    k = np.tile(np.arange(samples, dtype=np.int64), len(pixels))
-    seeds = samplers.path_seeds(seed, frame, rep, EDGE_SAMPLE + k)
-    along = None if stream_index is None else stream_jitter(seed, rep, stream_index * samples + k)
-    o, d, tmax = camera_rays(ctx.scene, pixel_filter, rep, seeds, along)
-    hits = ctx.accel.intersect_closest(o, d, tmax, camera=True)
+    seeds, o, d, tmax, hits = pixel_rays(ctx, seed, frame, pixel_filter, pixels, samples, EDGE_SAMPLE,
+                                         stream_index)
     surf, idx = surface_hits(ctx.scene, o, d, hits)
     total = np.zeros((len(pixels), 3), np.float64)
     if len(idx):

@@ -215,6 +215,21 @@ def stream_jitter(seed, pix, index):
     return samplers.sobol_jitter(samplers.hash_keys(seed, pix, CAMERA_SAMPLE), index)
 
 
+def pixel_rays(ctx, seed, frame, pixel_filter, pixels, samples, sample, stream_index=None):
+    """``samples`` camera rays through each of ``pixels`` (E,), traced:
+    (seeds (E * samples,), o, d, tmax, hits), pixel by pixel in a row. Ray k
+    of a pixel has the path seed of sample number ``sample`` + k and, with
+    a stream_index (the frame's place in its stream), the point
+    stream_index * samples + k of the pixel's filter sequence (stream_jitter):
+    spread evenly over the pixel, and over the frames of a still."""
+    rep = np.repeat(np.asarray(pixels, np.int64), samples)
+    k = np.tile(np.arange(samples, dtype=np.int64), len(pixels))
+    seeds = samplers.path_seeds(seed, frame, rep, sample + k)
+    along = None if stream_index is None else stream_jitter(seed, rep, stream_index * samples + k)
+    o, d, tmax = camera_rays(ctx.scene, pixel_filter, rep, seeds, along)
+    return seeds, o, d, tmax, ctx.accel.intersect_closest(o, d, tmax, camera=True)
+
+
 def seen_directly(ctx, o, d, tmax, hits, surf, idx):
     """(N, 3) radiance camera rays see directly: camera-visible lights, the
     world where they miss (unless the film is transparent) and the emission

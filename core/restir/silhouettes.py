@@ -30,13 +30,12 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..materials import shading as materials
-from ..sampling import samplers
 from ..geometry.interaction import HitSides, surface_hits
 from ..workers.parallel import concat_rows
 from ..util.rows import gather
 from ..util.vectors import dot, luminance
 from .adaptive_direct import neighbourhood_range
-from .gbuffer import CAMERA_SAMPLE, camera_rays, seen_directly, stream_jitter
+from .gbuffer import CAMERA_SAMPLE, pixel_rays, seen_directly
 
 EDGE_CONTRAST = 1.0     # neighbours differing by more than this x the image's mean luminance
 OWN_CONTRAST = 4.0      # ... and by more than this: no history of it on a moving view
@@ -78,12 +77,7 @@ def mean_seen_directly(ctx, seed, frame, pixel_filter, pixels, samples, stream_i
     samples + k of its pixel filter sequence: spread evenly over the pixel,
     and over the frames of a still."""
     samples = max(1, int(samples))
-    rep = np.repeat(np.asarray(pixels, np.int64), samples)
-    k = np.tile(np.arange(samples, dtype=np.int64), len(pixels))
-    seeds = samplers.path_seeds(seed, frame, rep, CAMERA_SAMPLE + k)
-    along = None if stream_index is None else stream_jitter(seed, rep, stream_index * samples + k)
-    o, d, tmax = camera_rays(ctx.scene, pixel_filter, rep, seeds, along)
-    hits = ctx.accel.intersect_closest(o, d, tmax, camera=True)
+    _, o, d, tmax, hits = pixel_rays(ctx, seed, frame, pixel_filter, pixels, samples, CAMERA_SAMPLE, stream_index)
     le = seen_directly(ctx, o, d, tmax, hits, *_sides(ctx.scene, d, hits))
     return le.reshape(len(pixels), samples, 3).mean(axis=1, dtype=np.float64).astype(np.float32)
 
