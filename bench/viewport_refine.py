@@ -60,7 +60,7 @@ def main(argv=None):
     width, height = (int(v) for v in args.size.split("x"))
     load_addon()
     import bpy
-    from restir_gi.restir_addon.viewport import session as vp
+    from restir_gi.restir_addon.viewport import draw, session as vp
     from restir_gi.restir_addon.viewport import progress as viewport_progress
     from restir_gi.core.restir import resize
     if args.step_frames is not None:
@@ -79,7 +79,7 @@ def main(argv=None):
     scene = bpy.context.scene
     scene.render.engine = "RESTIR_GI"
     scene.restir_gi.mode = args.mode
-    session = vp.ViewportSession(**vp.session_settings(scene))
+    session = vp.ViewportSession(**draw.session_settings(scene))
     session.resize(width, height)
     t0 = time.perf_counter()
     session.sync(bpy.context.evaluated_depsgraph_get())

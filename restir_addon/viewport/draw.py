@@ -14,6 +14,7 @@ import numpy as np
 from ..sync.objects import camera_from_region
 from ..final import bounces, restir_settings
 from .. import defaults
+from .redraw import REDRAWS
 from .session import ViewportSession
 
 
@@ -41,6 +42,7 @@ def view_update(engine, context, depsgraph):
             session.set_view(camera_from_region(context.region_data, depsgraph.scene))
             session.sync(depsgraph)
             session.start()
+            REDRAWS.watch(session)
             return
         session.configure(**session_settings(depsgraph.scene))
         session.sync(depsgraph, depsgraph.updates)
@@ -63,9 +65,9 @@ def view_draw(engine, context, depsgraph):
         serial, frame = session.frame_serial, session.frame    # the thread may replace it
         if frame is not None and not bpy.app.background:
             _draw(engine, depsgraph.scene, frame, serial, region.width, region.height)
-        engine.update_stats("", f"ReSTIR GI | {session.status()}")
-        if not session.converged:
-            engine.tag_redraw()
+        status = session.status()
+        engine.update_stats("", f"ReSTIR GI | {status}")
+        REDRAWS.drawn(session, serial, status)      # the next draw comes when there is news (redraw.py)
     except Exception as exc:  # noqa: BLE001 -- as above
         traceback.print_exc()
         engine.update_stats("", f"ReSTIR GI viewport failed: {exc}")
@@ -100,4 +102,5 @@ def free(engine):
         return
     if session is not None:
         engine.viewport_session = None
+        REDRAWS.forget(session)
         session.close(wait=False)

@@ -153,7 +153,8 @@ def test07_engine_callbacks(vp, vp_draw):
     assert session is not None and session.running and session.mode == "PATH"
     assert session.work.full_exports == 1
     vp_draw.view_draw(engine, context, dg)
-    assert "redraw" in calls and not any("failed" in c for c in calls)
+    assert not any("failed" in c for c in calls)
+    assert "redraw" not in calls            # the next draw comes from redraw.py's watcher
 
     # Add-on settings changed in a panel: noticed at the next redraw.
     scene.restir_gi.mode = "RESTIR_BIASED"
