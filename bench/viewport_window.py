@@ -8,19 +8,19 @@ For each engine, tools/real_blender.py opens example_blends/room_animated.blend
 in a 1280x800 window and runs bench/viewport_window_driver.py: the largest
 3D view looks through the camera, fitted to the view, overlays off, and
 switches to Rendered; screenshots 5, 10 and 20 s later. Two references of
-the camera, converged, are rendered once through the bpy module at half the
-camera frame's size in the window (full size takes hours on 2 shared cores)
-and saved through the file's view transform: ours (ReSTIR GI unbiased, which
+the camera, converged, are rendered once through the bpy module at the
+camera frame's size in the window (--reference-divisor 2: half of it, upscaled;
+full size takes 10-20 minutes on 2 quiet cores, hours on busy ones) and saved through the file's view transform: ours (ReSTIR GI unbiased, which
 converges to the path-traced image; --warmup frames, no denoiser) and Cycles
 (--samples, no adaptive sampling, no denoiser). They are cached under
 bench/out/viewport_window/ while their settings hold. Each screenshot's
-camera frame is resampled (bilinear) onto its full-size pixel grid and each
-reference upscaled (bilinear) to it; the error is the MSE of the 8-bit
+camera frame is resampled (bilinear) onto its full-size pixel grid (and a
+smaller reference upscaled bilinearly to it); the error is the MSE of the 8-bit
 display values (0-255) over the frame's pixels and channels. Also: time to
 first image (the camera frame differs from the Solid view's, from crops
 grabbed every 0.25 s for 6 s), and for ReSTIR GI the times of its first
-frame and of its first full-resolution frame (the viewport session's
-counters).
+frame, of the first draw of a frame (the add-on's redraw watcher) and of
+its first full-resolution frame (the viewport session's counters).
 
 Writes bench/out/viewport_window/results.md (and .json), the screenshots
 under <engine>/, and pair_<s>.png: ours | Cycles at s seconds (the camera
@@ -199,7 +199,9 @@ def main(argv=None):
                         help="engines to run in the window (the others' last screenshots are reused)")
     parser.add_argument("--report", nargs="+", default=["RESTIR_GI", "CYCLES"], help="engines in the table")
     parser.add_argument("--shots", nargs="+", type=float, default=[5.0, 10.0, 20.0])
-    parser.add_argument("--samples", type=int, default=256, help="the Cycles reference's samples")
+    parser.add_argument("--samples", type=int, default=1024, help="the Cycles reference's samples")
+    parser.add_argument("--reference-divisor", type=int, default=1,
+                        help="the references' size: the camera frame's divided by this (1: full size)")
     parser.add_argument("--warmup", type=int, default=128, help="our reference's warm-up frames")
     args = parser.parse_args(argv)
     reason = real_blender.missing()
@@ -223,7 +225,8 @@ def main(argv=None):
     load_addon()            # bpy (image reading), Blender's user folder kept out of $HOME
     rect = results[args.report[0]]["rect"]
     width, height = int(round(rect[2] - rect[0])), int(round(rect[3] - rect[1]))
-    rw, rh = (width + 1) // 2, (height + 1) // 2
+    d = max(1, args.reference_divisor)
+    rw, rh = (width + d - 1) // d, (height + d - 1) // d
     refs = {kind: upscale(read_png(render_reference(kind, rw, rh, args.samples, args.warmup)), width, height)
             for kind in ("ours", "cycles")}
     rows = []
@@ -239,7 +242,9 @@ def main(argv=None):
         first = first_image(r["folder"], float(lines["switched"][0]), r["rect"])
         full = lines["full_res"][0].split()[0] if "full_res" in lines else "n/a"
         first_frame = lines["first_frame"][0].split()[0] if "first_frame" in lines else "n/a"
+        first_drawn = lines["first_drawn"][0].split()[0] if "first_drawn" in lines else "n/a"
         rows.append({"engine": engine, "mse": errors, "first_image": first, "first_frame": first_frame,
+                     "first_drawn": first_drawn,
                      "full_res": full, "shot_times": lines.get("shot", []),
                      "frames": lines.get("frames", [""])[0], "statuses": lines.get("status", [])})
     floor = mse8(refs["ours"], refs["cycles"])
@@ -249,20 +254,20 @@ def main(argv=None):
                                    frames[("CYCLES", s)]], axis=1)
             write_png(os.path.join(OUT, f"pair_{s:g}.png"), pair)
     shots = " | ".join(f"{s:g} s" for s in args.shots)
-    table = [f"| engine | reference | {shots} | first image (s) | first frame (s) | full resolution (s) |",
-             "|---" * (5 + len(args.shots)) + "|"]
+    table = [f"| engine | reference | {shots} | first image (s) | first frame (s) | first drawn (s) | full resolution (s) |",
+             "|---" * (6 + len(args.shots)) + "|"]
     for row in rows:
         for kind in refs:
             table.append(f"| {row['engine']} | {kind} | " +
                          " | ".join(f"{row['mse'][kind][s]:.0f}" for s in args.shots) +
-                         f" | {row['first_image']} | {row['first_frame']} | {row['full_res']} |")
+                         f" | {row['first_image']} | {row['first_frame']} | {row['first_drawn']} | {row['full_res']} |")
     if len(rows) == 2:
         for kind in refs:
             ratio = [rows[1]["mse"][kind][s] / max(rows[0]["mse"][kind][s], 1e-9) for s in args.shots]
-            table.append(f"| Cycles / ours | {kind} | " + " | ".join(f"{x:.1f}x" for x in ratio) + " | | | |")
+            table.append(f"| Cycles / ours | {kind} | " + " | ".join(f"{x:.1f}x" for x in ratio) + " | | | | |")
     text = "\n".join([
         f"Camera frame {width}x{height} px in a 1280x800 window, MSE of 8-bit display values against "
-        f"references rendered at {rw}x{rh} and upscaled bilinearly: ours (ReSTIR GI unbiased, "
+        f"references rendered at {rw}x{rh}{' and upscaled bilinearly' if d > 1 else ''}: ours (ReSTIR GI unbiased, "
         f"{args.warmup} warm-up frames) and Cycles ({args.samples} samples); the two references differ by "
         f"MSE {floor:.0f}. ReSTIR GI at commit {head}. "
         f"`.venv/bin/python bench/viewport_window.py` ({time.strftime('%Y-%m-%d %H:%M')} UTC, load average "

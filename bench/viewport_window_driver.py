@@ -127,6 +127,15 @@ def since():
     return time.time() - state["t_switch"]
 
 
+def drawn_serial(session):
+    """The serial of the session's frame the 3D view last drew (the add-on's
+    redraw watcher, restir_addon/viewport/redraw.py, records it); 0 before
+    the first draw."""
+    module = next((m for name, m in list(sys.modules.items()) if name.endswith("restir_addon.viewport.redraw")), None)
+    entry = None if module is None else module.REDRAWS._sessions.get(id(session))
+    return entry[1][0] if entry and entry[1] else 0
+
+
 def watch_session():
     """ReSTIR GI: the session's first frame and first full-resolution frame
     (a thread of the driver: it runs while the main thread is busy)."""
@@ -141,6 +150,9 @@ def watch_session():
             if "first_frame" not in state and session.frame_serial > 0:
                 state["first_frame"] = t
                 say("first_frame", f"{t:.2f}", *session.render_size)
+            if "first_drawn" not in state and drawn_serial(session) > 0:
+                state["first_drawn"] = t
+                say("first_drawn", f"{t:.2f}")
             if "full_res" not in state and session.frame_serial > 0 and session.progress.divisor == 1:
                 state["full_res"] = t
                 say("full_res", f"{t:.2f}", *session.render_size)

@@ -44,8 +44,8 @@ def session():
         print(f"real-window tests skipped: {reason}")
         pytest.skip(reason)
     shutil.rmtree(OUT, ignore_errors=True)
-    rc = real_blender.run(_package(), BLEND, DRIVER, OUT, [], env={"REAL_RENDERED": "4", "REAL_F12": "16"},
-                          limit=420)
+    rc = real_blender.run(_package(), BLEND, DRIVER, OUT, [],
+                          env={"REAL_RENDERED": "4", "REAL_MOVE": "10", "REAL_F12": "40"}, limit=420)
     with open(os.path.join(OUT, "blender.log"), errors="replace") as fh:
         log = fh.read()
     return rc, log, read_log(OUT)
@@ -88,6 +88,22 @@ def test_viewport_shows_the_engines_image(session):
     rendered = _image(os.path.join(OUT, "rendered.png"))[y:y + h, x:x + w, :3]
     assert np.abs(rendered - solid).mean() > 0.05
     assert rendered.std() > 0.05
+
+
+def test_viewport_follows_edits(session):
+    """A camera turn and a moved object, made from a timer while Rendered
+    refines: a frame that includes both is published, and the 3D view is
+    drawn again with it (the draws come from redraw.py's watcher, not from
+    view_draw tagging itself)."""
+    _, _, lines = session
+    seconds, name, frames, included = lines["motion"][0].split()
+    assert included == "True", lines["motion"]
+    assert float(seconds) < 25 and int(frames) >= 1
+    x, y, w, h, _ = (int(v) for v in lines["area"][0].split())
+    before = _image(os.path.join(OUT, "before_move.png"))[y:y + h, x:x + w, :3]
+    after = _image(os.path.join(OUT, "after_move.png"))[y:y + h, x:x + w, :3]
+    assert np.abs(after - before).mean() > 0.01        # the view turned
+    assert after.std() > 0.05                          # and shows an image, not a flat colour
 
 
 def test_f12_writes_the_image(session):

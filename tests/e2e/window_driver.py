@@ -6,13 +6,17 @@ offers and picks ReSTIR GI, with the Properties editor on the Render tab;
 it shows the Material tab of a mesh and reads the material's preview icon
 REAL_PREVIEW_WAIT seconds later (material.png);
 REAL_RENDERED seconds after start it switches every 3D view to Rendered
-through the camera, overlays off; at REAL_F12 seconds it renders F12 and
+through the camera, overlays off; REAL_MOVE seconds after start it moves the
+camera and a mesh from a timer and waits until a frame that includes both
+edits is published and drawn (before_move.png, after_move.png); at
+REAL_F12 seconds it renders F12 and
 writes the image; then it opens the Preferences on Add-ons, renders a few
 animation frames headless with ``blender -b FILE -E RESTIR_GI -a`` and
 quits. It takes its own screenshots of the window (solid.png, rendered.png
 just before F12, preferences.png) into REAL_OUT. Every step prints a line
 starting with DRIVER, read back from blender.log (tools/real_blender_driver.py)."""
 
+import gc
 import os
 import subprocess
 import sys
@@ -26,6 +30,8 @@ from real_blender_driver import OUT, grab, say, say_versions, step
 
 RENDERED_AT = float(os.environ.get("REAL_RENDERED", "4"))
 F12_AT = float(os.environ.get("REAL_F12", "14"))
+MOVE_AT = float(os.environ.get("REAL_MOVE", "9"))
+MOVE_WAIT = 25.0        # seconds to wait for the frame that shows the edits
 PREVIEW_WAIT = float(os.environ.get("REAL_PREVIEW_WAIT", "5"))
 ENGINE = "RESTIR_GI"
 
@@ -100,6 +106,57 @@ def rendered_viewport():
     say("viewport", "rendered")
 
 
+def viewport_session():
+    """The engine's ViewportSession (the engine's Python instance is not
+    reachable from bpy)."""
+    return next((o for o in gc.get_objects() if type(o).__name__ == "ViewportSession"), None)
+
+
+motion = {}
+
+
+@step
+def move():
+    """The camera turns a little and a mesh slides, as a user's edits do."""
+    screenshot("before_move.png")
+    session = viewport_session()
+    motion["serial"] = session.frame_serial if session else -1
+    scene = bpy.context.scene
+    scene.camera.rotation_euler.z += 0.04
+    ob = next(o for o in scene.objects if o.type == "MESH" and o.visible_get() and o.animation_data is None
+              and o.dimensions.length < 3.0)
+    ob.location.x += 0.3
+    motion["object"] = ob.name
+    motion["t"] = time.time()
+    bpy.app.timers.register(edits_queued, first_interval=0.5)
+
+
+@step
+def edits_queued():
+    """Half a second on: view_update and view_draw have handed both edits to
+    the session; from now on its generation covers them."""
+    session = viewport_session()
+    motion["generation"] = session.generation
+    bpy.app.timers.register(followed, first_interval=0.05)
+
+
+@step
+def followed():
+    session = viewport_session()
+    waited = time.time() - motion["t"]
+    if session.frame_generation < motion["generation"] and waited < MOVE_WAIT:
+        return 0.05
+    time.sleep(0.3)     # the redraw watcher's tick and the draw (redraw.py), then the grab
+    bpy.app.timers.register(step(after_move), first_interval=0.3)
+    say("motion", f"{waited:.2f}", motion["object"], session.frame_serial - motion["serial"],
+        session.frame_generation >= motion["generation"])
+    return None
+
+
+def after_move():
+    screenshot("after_move.png")
+
+
 @step
 def f12():
     scene = bpy.context.scene
@@ -144,4 +201,5 @@ say_versions()
 bpy.app.timers.register(pick_engine, first_interval=1.5)
 bpy.app.timers.register(material_tab, first_interval=2.0)
 bpy.app.timers.register(rendered_viewport, first_interval=RENDERED_AT)
+bpy.app.timers.register(move, first_interval=MOVE_AT)
 bpy.app.timers.register(f12, first_interval=F12_AT)
