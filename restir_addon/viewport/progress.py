@@ -10,7 +10,9 @@ resize), in order:
   it (4, 2, 1). Each step carries what was learnt to the finer image
   (core/restir/resize.py: reservoirs, G-buffer history and running means by
   nearest neighbour, the means' weight capped at a few frames; the path
-  tracer's mean likewise), so the image keeps its level and its smoothness.
+  tracer's mean likewise), and at the step to full resolution the last
+  coarse image is blended into the first finer ones, so the image keeps its
+  level and its smoothness.
 - SAMPLING: full resolution (or the fixed Viewport Resolution, or the finest
   that fits in memory); frames are added, in the ReSTIR modes as one
   running mean over every still frame (as an F12 still), until
@@ -26,7 +28,7 @@ state over a resolution step.
 
 import numpy as np
 
-from ...core.restir.resize import CARRY_FRAMES, resize_image, resize_stream
+from ...core.restir.resize import CARRY_FRAMES, resize_image, resize_stream, upscale_bilinear
 from ...core.util.vectors import luminance
 from .. import memory
 from ..memory import SceneTooLarge
@@ -34,8 +36,25 @@ from ..memory import SceneTooLarge
 MOVING, REFINING, SAMPLING, DONE = "moving", "refining", "sampling", "done"
 
 SCALES = {"FULL": 1, "HALF": 2, "QUARTER": 4}
-STEP_FRAMES = 6             # frames at a divisor of a still view before the next finer one: the
-                            # finer step starts from settled reservoirs (bench/viewport_refine.py)
+# A still view's frames at each divisor before the next finer one. The error
+# of the example room's viewport is noise, not resolution: a frame at 1/2
+# (1/4) resolution upscaled would differ from the converged full-size image
+# by MSE 22 (44) in 8-bit values, while its noise stays above ~130 for the
+# first 20 frames, and a full-size frame costs 4x a half-size one. So the
+# image steps when its noise is down, not when a few frames are in:
+# bench/viewport_refine.py --clock 1.0,0.45,1.45,5.0 (the real window's frame
+# times), MSE at 10 / 20 / 30 / 40 s: STEP_FRAMES 6 489 / 457 / - / -,
+# 12 284 / 193 / 190 / 172, 16 206 / 167 / 132 / 142, 20 (carry 2, blend 8)
+# 200 / 162 / 134 / 110 (39 s to full resolution); 16 it is, ~30 s to full
+# resolution in the window.
+STEP_FRAMES = 16
+# At the step to full resolution frames get 4x dearer and the first ones are
+# noisier than the image shown: the last coarse image, upscaled, is blended
+# in as BLEND_FRAMES frames at most (Refinement._blend_carried; at 40 s
+# 142 -> 126). Blended at the step from 1/4 to 1/2 too, it made 10 s worse
+# (206 -> 228): the 1/4 image is the blurrier and its successors cheap.
+BLEND_FRAMES = 8
+BLEND_MIN = 0.02            # the coarse image's share below which it is dropped
 CONVERGED_CHANGE = 1e-3     # under a quarter of an 8-bit step at mid grey, on average
 CONVERGED_RUN = 4
 CONVERGED_MIN_SAMPLES = 32
@@ -211,6 +230,7 @@ class Refinement:
         """Render from now on at ``divisor``: a new context, with the
         reservoirs, history and running means carried to its size."""
         old = None if self._scene is None else (self._scene.width, self._scene.height)
+        shown = self.frame
         self._divisor = divisor
         self._build_context(False)
         self.progress.stepped(divisor)
@@ -220,6 +240,11 @@ class Refinement:
         if old is None or old == (w, h):
             return
         resize_stream(self._restir, w, h)
+        self._carried = None
+        finest = divisor <= self.progress.finest
+        if finest and shown is not None and shown.shape[:2] == (old[1], old[0]) and self.progress.samples > 0:
+            weight = min(self.progress.samples, BLEND_FRAMES)
+            self._carried = (upscale_bilinear(shown, w, h), float(weight))
         if self._accum is not None and self._accum_n > 0:
             mean = resize_image((self._accum / self._accum_n).reshape(old[1], old[0], 3), w, h)
             self._accum_n = min(self._accum_n, CARRY_FRAMES)
@@ -227,3 +252,25 @@ class Refinement:
         else:
             self._accum, self._accum_n = None, 0
         self._shown = None
+
+    def _blend_carried(self, frame):
+        """A ReSTIR frame (h, w, 4) after the step to full resolution, blended
+        with the last coarse image shown before the step (upscaled
+        bilinearly, as it was drawn): that image counts as ``weight`` frames
+        against the k frames rendered at the new size, so the first finer
+        frames, noisier than the image the user was looking at, take over
+        gradually and the image does not get worse at the step. The carried
+        image is dropped when its share falls under BLEND_MIN, and at any
+        change (the view, an edit)."""
+        carried = self._carried
+        if carried is None:
+            return frame
+        if self.progress.moving or carried[0].shape != frame.shape:
+            self._carried = None
+            return frame
+        image, weight = carried
+        share = weight / (weight + self.progress.at_divisor + 1)
+        if share < BLEND_MIN:
+            self._carried = None
+            return frame
+        return (share * image + (1.0 - share) * frame).astype(np.float32)

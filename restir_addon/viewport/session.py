@@ -107,6 +107,7 @@ class ViewportSession(Refinement, SceneSync):
         self._accum = None              # running sum of frames since the last change
         self._accum_n = 0               # frames in _accum (weights: a resolution step carries a few)
         self._shown = None              # the latest published frame, for the convergence test
+        self._carried = None            # (image, weight): the coarse image before a resolution step
         # --- published ---
         self.frame = None               # (h, w, 4) float32 RGBA, row 0 at the bottom
         self.frame_serial = 0
@@ -230,6 +231,7 @@ class ViewportSession(Refinement, SceneSync):
 
     def _scene_changed(self):
         self._accum, self._accum_n = None, 0
+        self._carried = None
         self._shown = None
         self.progress.changed()
 
@@ -278,6 +280,8 @@ class ViewportSession(Refinement, SceneSync):
             self._accum_n += 1
             color = self._accum / self._accum_n
         frame = to_rgba(color.reshape(h, w, 3))
+        if not path:
+            frame = self._blend_carried(frame)
         change = relative_change(frame, self._shown)
         # The frame is counted and published before the progress counts it: a
         # reader that sees the session converged then also sees every frame
@@ -381,6 +385,7 @@ class ViewportSession(Refinement, SceneSync):
         self._free_scene()
         self._restir.reset()
         self._accum, self._accum_n = None, 0
+        self._carried = None
         self.frame = self._shown = None
 
     def status(self):

@@ -79,7 +79,8 @@ def test03_session_refines_a_still_view_to_full_resolution(vp, addon):
     then 1/4, 1/2, full, then samples to the limit and stops."""
     build_scene()
     step = addon.restir_addon.viewport.progress.STEP_FRAMES
-    session = new_session(vp, mode="RESTIR_BIASED", scale="AUTO", samples=16, frame_budget=1e-6)
+    limit = 2 * step + 4
+    session = new_session(vp, mode="RESTIR_BIASED", scale="AUTO", samples=limit, frame_budget=1e-6)
     session.resize(96, 64)
     assert session.render_step()
     camera = session.view
@@ -94,11 +95,11 @@ def test03_session_refines_a_still_view_to_full_resolution(vp, addon):
         sizes.append(session.render_size)
         texts.append(session.status())
     # The last moving frame counts as sample 1.
-    assert sizes == [(24, 16)] * (step - 1) + [(48, 32)] * step + [(96, 64)] * (16 - 2 * step)
+    assert sizes == [(24, 16)] * (step - 1) + [(48, 32)] * step + [(96, 64)] * (limit - 2 * step)
     assert texts[0].startswith("Refining 1/4 res") and texts[step].startswith("Refining 1/2 res") \
         and texts[2 * step + 1].startswith("Sample"), texts
     assert session.converged and session.status().startswith("Done")
-    assert session.progress.samples == 16
+    assert session.progress.samples == limit
     session.close()
 
 
@@ -150,6 +151,48 @@ def test04_resolution_step_keeps_the_image(vp, addon):
     err_carried = float(np.mean((after - ref) ** 2))
     err_cold = float(np.mean((first - ref) ** 2))
     assert err_carried < 0.7 * err_cold, (err_carried, err_cold)
+
+
+def test06_step_blends_the_last_coarse_image(vp, addon):
+    """Right after a resolution step the image shown is the finer frame
+    blended with the coarse image shown before it (upscaled bilinearly),
+    which counts as min(samples, BLEND_FRAMES) frames; its share falls with
+    every finer frame and it is dropped under BLEND_MIN, and at any change."""
+    progress = addon.restir_addon.viewport.progress
+    resize = importlib.import_module("restir_gi.core.restir.resize")
+    build_scene()
+    session = new_session(vp, mode="RESTIR_BIASED", scale="HALF", samples=0, max_bounces=2)
+    session.resize(96, 64)
+    for _ in range(5):
+        assert session.render_step()
+    coarse = session.frame.copy()
+    session.scale = "AUTO"
+    session.progress.at_divisor = 10 ** 6           # still long enough: the next frame steps
+    assert session.render_step() and session.render_size == (96, 64)
+    image, weight = session._carried
+    assert weight == min(5, progress.BLEND_FRAMES)
+    np.testing.assert_allclose(image, resize.upscale_bilinear(coarse, 96, 64))
+    share = weight / (weight + 1)
+    shown = session.frame
+    # What the finer frame alone was: shown = share * image + (1 - share) * fine.
+    fine = (shown - share * image) / (1 - share)
+    assert np.all(np.isfinite(fine))
+    assert np.mean((shown - image) ** 2) < np.mean((fine - image) ** 2)
+    before = shown
+    for k in (2, 3):                                # the coarse image's share falls: 5/7, 5/8
+        assert session.render_step() and session._carried is not None
+        assert session.progress.at_divisor == k
+        assert np.mean((session.frame - image) ** 2) > 0 and not np.array_equal(session.frame, before)
+        before = session.frame
+    session.progress.at_divisor = int(weight / progress.BLEND_MIN)   # share under BLEND_MIN: dropped
+    assert session.render_step() and session._carried is None
+    # A change drops it at once.
+    session.progress.at_divisor = 0
+    session._carried = (image, weight)
+    session.set_view(_nudged(session.view, 1))
+    assert session.render_step()
+    assert session._carried is None
+    session.close()
 
 
 def test05_denoise_start_sample(vp):
