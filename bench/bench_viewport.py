@@ -35,7 +35,6 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent / "tests"))
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 from bench_common import OUT, ROOT, load_addon
-from support.blender_util import Recorder
 
 BLEND = ROOT / "example_blends" / "room_indirect.blend"
 TARGET_EDIT_S = 0.3     # issue 4: transform edit to next frame at 1/4 scale
@@ -183,6 +182,7 @@ def part_viewport(args, lines):
     import bpy
     vp = sys.modules["restir_gi"].restir_addon.viewport.session
     from restir_gi.restir_addon.final import restir_settings
+    from support.blender_util import Recorder      # imports restir_gi: after load_addon
     bpy.ops.wm.open_mainfile(filepath=str(args.blend))
     scene = bpy.context.scene
     recorder = Recorder()

@@ -202,7 +202,7 @@ def main(argv=None):
     parser.add_argument("--samples", type=int, default=1024, help="the Cycles reference's samples")
     parser.add_argument("--reference-divisor", type=int, default=1,
                         help="the references' size: the camera frame's divided by this (1: full size)")
-    parser.add_argument("--warmup", type=int, default=128, help="our reference's warm-up frames")
+    parser.add_argument("--warmup", type=int, default=256, help="our reference's warm-up frames")
     args = parser.parse_args(argv)
     reason = real_blender.missing()
     if reason:
