@@ -80,7 +80,24 @@ def material_tab():
 def show_material_tab():
     for _, area in areas("PROPERTIES"):
         area.spaces.active.context = "MATERIAL"
-    bpy.context.view_layer.objects.active.active_material.preview_ensure()
+    mat = bpy.context.view_layer.objects.active.active_material
+    mat.preview_ensure()
+    started = time.time()
+
+    seen = {}
+
+    def filled():
+        """When the icon and the large preview (the Preview panel's) first
+        hold an image: how long the engine's previews took (the file stores
+        none; Blender renders them in a job beside the UI)."""
+        p = mat.preview
+        for kind, pixels in (("icon", p.icon_pixels_float), ("image", p.image_pixels_float)):
+            if kind not in seen and len(pixels) and sum(pixels) / len(pixels) > 0.02:
+                seen[kind] = time.time() - started
+                size = tuple(p.icon_size if kind == "icon" else p.image_size)
+                say("preview_seconds", kind, f"{size[0]}x{size[1]}", f"{seen[kind]:.2f}")
+        return 0.05 if len(seen) < 2 and time.time() - started < PREVIEW_WAIT else None
+    bpy.app.timers.register(step(filled), first_interval=0.05)
     bpy.app.timers.register(material_preview, first_interval=PREVIEW_WAIT)
 
 
