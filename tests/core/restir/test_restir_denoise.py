@@ -374,23 +374,24 @@ def test_short_histories_get_the_energy_the_filter_lost_back():
     assert far[short].max() == np.float32(ENERGY_RANGE[1])
 
 
-def test_a_lone_bright_pixel_of_short_history_is_spread_not_kept():
-    """firefly_factor: a pixel of short history brighter than FIREFLY_RATIO x
-    its brightest neighbour is brought down to that (whatever the split
-    into rows); long histories and milder pixels keep 1. Through the
-    denoiser, the pixel's energy stays in its window (kept_energy)."""
-    from restir_gi.core.restir.denoise import FIREFLY_RATIO, SHORT_HISTORY_ENERGY, firefly_factor
+def test_a_lone_bright_pixel_is_spread_not_kept():
+    """firefly_factor: a pixel brighter than FIREFLY_RATIO x its brightest
+    neighbour is brought down to that, at any history length (whatever the
+    split into rows); milder pixels and a bright pair keep 1. Through the
+    denoiser, a short history's energy stays in its window (kept_energy)."""
+    from restir_gi.core.restir.denoise import FIREFLY_RATIO, firefly_factor
     n = W * H
     lum = np.full(n, 1.0, np.float32)
     hot, mild, old = 20 * W + 30, 10 * W + 10, 30 * W + 40
+    pair = [5 * W + 50, 5 * W + 51]
     lum[[hot, old]] = 50.0
+    lum[pair] = 50.0
     lum[mild] = 0.9 * FIREFLY_RATIO
-    frames = np.ones(n, np.float32)
-    frames[old] = 2 * SHORT_HISTORY_ENERGY
     valid = np.ones(n, bool)
-    factor = np.concatenate([firefly_factor(lum, frames, valid, W, H, a, b) for a, b in ((0, 20), (20, 21), (21, H))])
+    factor = np.concatenate([firefly_factor(lum, valid, W, H, a, b) for a, b in ((0, 20), (20, 21), (21, H))])
     assert factor[hot] == pytest.approx(FIREFLY_RATIO / 50.0)
-    factor[hot] = 1.0
+    assert factor[old] == pytest.approx(FIREFLY_RATIO / 50.0)
+    factor[[hot, old]] = 1.0
     np.testing.assert_array_equal(factor, 1.0)
     # Through the denoiser: a grey plane of one-frame histories, one pixel
     # 50x brighter. The pixel comes out near the plane's 0.5 (0.77 without
