@@ -4,7 +4,7 @@ rendered one after another (as its render thread does), each frame's
 display values (the file's view transform, 8 bits, bilinear upscaling
 as drawn) compared with a converged reference.
 
-    .venv/bin/python bench/viewport_refine.py [--size 1044x587] [--seconds 41] \
+    .venv/bin/python bench/viewport_refine.py [--size 1044x587] [--seconds 41]
         [--clock 1.0,0.45,1.45,5.0] [--reference PNG]
 
 The reference defaults to bench/out/viewport_window/reference_ours.png
@@ -17,7 +17,7 @@ what bench/viewport_window.py measures in the real window without one: with
 runs slower than this headless loop: it draws, and its export runs on the
 main thread), so settings are compared frame for frame at the times the
 window would show them.
-""""""
+"""
 
 import argparse
 import sys
