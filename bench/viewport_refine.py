@@ -37,22 +37,6 @@ def srgb(x):
     return np.where(x <= 0.0031308, 12.92 * x, 1.055 * np.power(x, 1 / 2.4) - 0.055)
 
 
-def upscale(frame, width, height):
-    """Bilinear upscale (H, W, C) -> (height, width, C), as the viewport
-    draws a coarse frame (a linearly filtered texture, clamped at the edges)."""
-    h, w = frame.shape[:2]
-    if (h, w) == (height, width):
-        return frame
-    sx = np.clip((np.arange(width) + 0.5) * w / width - 0.5, 0, w - 1)
-    sy = np.clip((np.arange(height) + 0.5) * h / height - 0.5, 0, h - 1)
-    ix, iy = np.minimum(sx.astype(int), max(w - 2, 0)), np.minimum(sy.astype(int), max(h - 2, 0))
-    fx, fy = (sx - ix)[None, :, None], (sy - iy)[:, None, None]
-    ix1, iy1 = np.minimum(ix + 1, w - 1), np.minimum(iy + 1, h - 1)
-    top = frame[iy][:, ix] * (1 - fx) + frame[iy][:, ix1] * fx
-    bottom = frame[iy1][:, ix] * (1 - fx) + frame[iy1][:, ix1] * fx
-    return top * (1 - fy) + bottom * fy
-
-
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--size", default="1044x587")
@@ -77,6 +61,7 @@ def main(argv=None):
     from restir_gi.restir_addon.viewport import draw, session as vp
     from restir_gi.restir_addon.viewport import progress as viewport_progress
     from restir_gi.core.restir import resize
+    from restir_gi.core.restir.resize import upscale_bilinear     # as the viewport draws a coarse frame
     if args.step_frames is not None:
         viewport_progress.STEP_FRAMES = args.step_frames
     if args.carry_frames is not None:
@@ -104,12 +89,12 @@ def main(argv=None):
         if clock:
             clock["t"] += clock[session.progress.divisor]
         t = clock["t"] if clock else time.perf_counter() - t0
-        frame = upscale(session.frame[..., :3], width, height)
+        frame = upscale_bilinear(session.frame[..., :3], width, height)
         err = float(np.mean((np.round(srgb(frame) * 255.0) - ref8) ** 2))
         shown.append((t, err))
         print(f"{t:6.2f} s  {session.status():55s} MSE {err:7.1f}", flush=True)
-    if args.save:
-        np.save(args.save, np.round(srgb(upscale(session.frame[..., :3], width, height)) * 255.0).astype(np.uint8))
+    if args.save and shown:
+        np.save(args.save, np.round(srgb(frame) * 255.0).astype(np.uint8))
     session.close()
     for mark in (5.0, 10.0, 20.0, 30.0, 40.0):
         before = [e for t, e in shown if t <= mark]
