@@ -24,7 +24,8 @@ raw buffers) into an anonymous memory file of its own, two of them used in
 turn, and announces it on a pipe with the pass's number and size; a reader
 is always done with a file before its writer reuses it (it answers each
 message before the next is written). If the child dies, diverges or cannot
-send, or does not answer in time (WAIT_SECONDS), the parent computes the
+send, or does not answer in time (WAIT_SECONDS and WAIT_FACTOR, or the
+Workers' own twin_wait), the parent computes the
 child's ranges itself and goes on alone; an
 exception raised by the pass in the child is raised again in the parent.
 
@@ -58,6 +59,10 @@ class TwinLost(RuntimeError):
     """The other process ended or diverged."""
 
 
+class TwinSilent(TwinLost):
+    """The other process did not answer in time (it may be stuck for good)."""
+
+
 _local = threading.local()     # the render loop's Twin, on the thread that runs it
 
 
@@ -76,15 +81,22 @@ class Twin:
         self.calls = 0
         self.in_pass = False
         self.balance = {}       # pass -> the parent's share of its pixels
+        self.wait = (WAIT_SECONDS, WAIT_FACTOR)     # how long the parent waits for a pass (start)
+        self.hung = False       # the parent went on alone: the child did not answer in time
         self._files = None
         self._pipes = None
 
     @staticmethod
-    def start(balance=None):
+    def start(balance=None, wait=None):
         """Fork; returns the Twin in both processes (None if it could not fork).
-        balance: the passes' splits learnt by an earlier loop."""
+        balance: the passes' splits learnt by an earlier loop; wait:
+        (seconds, factor): the parent waits for the child's half of a pass
+        the longer of seconds and factor times its own half's time (None:
+        WAIT_SECONDS and WAIT_FACTOR)."""
         twin = Twin()
         twin.balance = dict(balance or {})
+        if wait is not None:
+            twin.wait = (float(wait[0]), float(wait[1]))
         files, pipes = [], []
         try:
             files = [os.memfd_create("restir-twin", os.MFD_CLOEXEC) for _ in range(4)]
@@ -226,7 +238,7 @@ class Twin:
         if timeout is not None:
             ready, _, _ = select.select([self._pipes[0]], [], [], timeout)
             if not ready:
-                raise TwinLost(f"the other process did not answer within {timeout:.0f} s")
+                raise TwinSilent(f"the other process did not answer within {timeout:.1f} s")
         header = _read_exactly(self._pipes[0], _HEADER.size)
         got_k, size = _HEADER.unpack(header)
         if got_k != k:
@@ -309,10 +321,11 @@ def run_pass(twin, fn, parts, written):
         twin.in_pass = False
     # The parent does not wait forever: a child that does not answer is
     # left, and its ranges computed here.
-    wait = max(WAIT_SECONDS, WAIT_FACTOR * (time.perf_counter() - t0)) if twin.leader else None
+    wait = max(twin.wait[0], twin.wait[1] * (time.perf_counter() - t0)) if twin.leader else None
     try:
         other = twin.exchange(payload, wait)
-    except TwinLost:
+    except TwinLost as e:
+        twin.hung = isinstance(e, TwinSilent)
         twin.end()              # the child exits here; the parent kills it
         return parts, results + [fn(a, b) for a, b in theirs]
     if payload[0] == "error":   # the parent raises it

@@ -66,12 +66,20 @@ def _mark_worker():
 class Workers:
     """A small pool that maps a function over contiguous pixel ranges."""
 
-    def __init__(self, threads=None, max_range=MAX_PIXELS_PER_RANGE, processes=True):
+    def __init__(self, threads=None, max_range=MAX_PIXELS_PER_RANGE, processes=True,
+                 twin_wait=None):
         """processes: render loops in ``twin`` may fork a second process
-        (Linux, two workers); False keeps every pass on threads."""
+        (Linux, two workers); False keeps every pass on threads. twin_wait:
+        (seconds, factor), how long the leader waits for the twin's half of
+        a pass before it goes on alone (forked.Twin.start; None: its
+        defaults). After a twin did not answer in time these workers fork no
+        more (processes goes False): a fork that hung once may hang again,
+        and each costs the wait. (A twin that exited, say because it could
+        not follow the scene's edits, is forked anew for the next loop.)"""
         self.threads = max(1, threads or min(os.cpu_count() or 1, 2))
         self.max_range = max(1, int(max_range))
         self.processes = bool(processes) and forked.AVAILABLE and self.threads == 2
+        self.twin_wait = None if twin_wait is None else tuple(twin_wait)
         self._balance = {}
         self._parked = None             # (Twin, token) waiting for the next loop
         self._pool = (ThreadPoolExecutor(self.threads, initializer=_mark_worker)
@@ -169,7 +177,7 @@ class Workers:
             else:
                 parked_twin.end()
         if twin is None and use:
-            twin = forked.Twin.start(balance=self._balance)
+            twin = forked.Twin.start(balance=self._balance, wait=self.twin_wait)
         if twin is None:
             yield True
             return
@@ -179,6 +187,8 @@ class Workers:
             completed = keep is not None and keep.complete
         finally:
             self._balance = dict(twin.balance)     # where to split the passes of the next loop
+            if twin.leader and twin.hung:
+                self.processes = False
             if completed and not twin.leader:
                 twin.serve(keep.state)      # never returns
             if completed and twin.pid is not None:

@@ -341,3 +341,33 @@ def test15_forking_a_process_with_threads_warns_nothing(workers):
         other.join()
     assert lead and pids[-1] != os.getpid()
     assert not [str(w.message) for w in caught if "fork" in str(w.message)]
+
+
+def test14_after_a_lost_twin_the_workers_fork_no_more():
+    """A child that does not answer within the workers' own wait (seconds,
+    factor) is left, and the next loop runs on threads instead of forking
+    again (a viewport must not stall at every frame)."""
+    workers = Workers(2, twin_wait=(0.5, 2.0))
+    started = []
+
+    def fn(a, b):
+        twin = forked.active()
+        if twin is not None and twin.leader and twin.pid not in started:
+            started.append(twin.pid)
+        if a > 0 and twin is not None and not twin.leader:
+            time.sleep(3600)
+        return np.arange(a, b)
+
+    try:
+        t = time.perf_counter()
+        with workers.twin(N):
+            first = np.concatenate(workers.map(fn, N))
+        assert 0.5 <= time.perf_counter() - t < 10.0
+        assert workers.processes is False
+        with workers.twin(N) as lead:
+            assert lead and forked.active() is None
+            second = np.concatenate(workers.map(fn, N))
+    finally:
+        workers.close()
+    assert np.array_equal(first, np.arange(N)) and np.array_equal(second, np.arange(N))
+    assert len(started) == 1 and gone(started[0])
