@@ -27,8 +27,11 @@ class SceneSync(SceneReader, SceneApplier):
     """Blender-side reading state, the queue of changes, and the core scene
     (``scene``, ``accel``, ``context``) they were applied to."""
 
-    # Render loops may fork a twin process for the second core (core/workers/forked.py).
+    # Render loops may fork a twin process for the second core (core/workers/forked.py);
+    # twin_wait: (seconds, factor) the leader waits for its half of a pass
+    # (None: forked's defaults).
     twin_process = True
+    twin_wait = None
 
     def __init__(self, threads=None):
         self.work = Work()

@@ -48,7 +48,7 @@ from ...core.geometry.dynamic_accel import TraceInterrupted
 from ...core.util.errors import describe
 from ...core.camera.film import to_rgba
 from ...core.integrators.media import media_of
-from ...core.render import CHUNK_PIXELS, path_trace_pixels
+from ...core.render import CHUNK_PIXELS, path_trace_pixels, render_restir
 from ...core.restir import ReSTIRGI, ReSTIRSettings
 from ...core.restir.accumulation import STILL
 from .. import defaults
@@ -82,9 +82,17 @@ class ViewportSession(Refinement, SceneSync):
     accumulated; the frames right after a change count as sample 1).
     """
 
-    # The viewport's passes stay on threads: its frames are interrupted by
-    # edits, and it runs in Blender's window process.
-    twin_process = False
+    # ReSTIR frames run in two processes where the platform forks, as final
+    # renders do (core/workers/forked.py): two threads gave a 320x180 frame
+    # 1.3x of one core, the twin ~1.8x. Between frames the twin is parked and
+    # sent the new view, or the scene's edits (core/render.render_restir's
+    # Continuation); a frame abandoned for an edit ends it, and the next
+    # forks again (~10 ms). A twin that does not answer within a second, or
+    # four times the leader's half of the pass, is left and the session goes
+    # on without one (parallel.Workers): the view must not freeze for the
+    # final renders' 30 s.
+    twin_process = True
+    twin_wait = (1.0, 4.0)
 
     def __init__(self, mode="RESTIR_BIASED", scale=defaults.VIEWPORT_SCALE, samples=defaults.VIEWPORT_SAMPLES,
                  frame_budget=defaults.VIEWPORT_FRAME_BUDGET, settle_frames=defaults.VIEWPORT_SETTLE_FRAMES,
@@ -262,7 +270,7 @@ class ViewportSession(Refinement, SceneSync):
                 color = self._path_sample(self.progress.samples)
             else:
                 settings = self.restir_settings if self.progress.moving else self._still_settings
-                result = self._restir.render_frame(self._ctx, settings, self._frame_index)
+                result = render_restir(self._ctx, self._restir, settings, self._frame_index)
                 self._frame_index += 1
                 self.last_history_found = result.history_found
                 denoised = self.progress.samples + 1 >= self.denoise_start
