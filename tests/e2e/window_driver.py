@@ -16,10 +16,14 @@ quits. It takes its own screenshots of the window (solid.png, rendered.png
 just before F12, preferences.png) into REAL_OUT. Every step prints a line
 starting with DRIVER, read back from blender.log (tools/real_blender_driver.py)."""
 
+import faulthandler
 import gc
+import glob
 import os
+import signal
 import subprocess
 import sys
+import threading
 import time
 
 import bpy
@@ -28,10 +32,16 @@ import bpy
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 from real_blender_driver import OUT, grab, say, say_versions, step
 
+# Stacks for a viewport that stops following the edits (see followed): this
+# process's threads, and the twin processes' (forked from it, they inherit
+# the handler).
+faulthandler.register(signal.SIGUSR1, all_threads=True)
+
 RENDERED_AT = float(os.environ.get("REAL_RENDERED", "4"))
 F12_AT = float(os.environ.get("REAL_F12", "14"))
 MOVE_AT = float(os.environ.get("REAL_MOVE", "9"))
 MOVE_WAIT = 25.0        # seconds to wait for the frame that shows the edits
+STALL_DUMP = 8.0        # after this long without it, the stacks go to blender.log
 PREVIEW_WAIT = float(os.environ.get("REAL_PREVIEW_WAIT", "5"))
 ENGINE = "RESTIR_GI"
 
@@ -145,7 +155,23 @@ def move():
     ob.location.x += 0.3
     motion["object"] = ob.name
     motion["t"] = time.time()
+    motion["published"] = []
+    if session is not None:
+        threading.Thread(target=watch_frames, args=(session, motion["published"]), daemon=True).start()
     bpy.app.timers.register(edits_queued, first_interval=0.5)
+
+
+def watch_frames(session, published):
+    """(a thread) When each frame generation was published: the main
+    thread's timers can be held up by other steps (a screenshot), this
+    thread only by the GIL."""
+    last, end = None, time.time() + MOVE_WAIT
+    while time.time() < end:
+        generation = session.frame_generation
+        if generation != last:
+            published.append((time.time(), generation))
+            last = generation
+        time.sleep(0.005)
 
 
 @step
@@ -162,12 +188,32 @@ def followed():
     session = viewport_session()
     waited = time.time() - motion["t"]
     if session.frame_generation < motion["generation"] and waited < MOVE_WAIT:
+        if waited > STALL_DUMP and not motion.get("dumped"):
+            motion["dumped"] = True
+            dump_stacks()
         return 0.05
     time.sleep(0.3)     # the redraw watcher's tick and the draw (redraw.py), then the grab
     bpy.app.timers.register(step(after_move), first_interval=0.3)
+    # The first frame that included both edits, as the watching thread saw it.
+    waited = next((t for t, g in motion["published"] if g >= motion["generation"]), motion["t"] + waited) \
+        - motion["t"]
     say("motion", f"{waited:.2f}", motion["object"], session.frame_serial - motion["serial"],
         session.frame_generation >= motion["generation"])
     return None
+
+
+def dump_stacks():
+    """Python stacks of this process and of its children into blender.log."""
+    say("stalled: stacks follow")
+    for stat in glob.glob("/proc/[0-9]*/stat"):
+        try:
+            with open(stat) as f:
+                fields = f.read().split()
+        except OSError:
+            continue
+        if int(fields[3]) == os.getpid():
+            os.kill(int(fields[0]), signal.SIGUSR1)
+    faulthandler.dump_traceback(all_threads=True)
 
 
 def after_move():
