@@ -181,22 +181,29 @@ def apply_edit(bpy, session, recorder, edit):
 def part_viewport(args, lines):
     import bpy
     vp = sys.modules["restir_gi"].restir_addon.viewport.session
-    from restir_gi.restir_addon.final import restir_settings
+    from restir_gi.restir_addon.viewport.draw import session_settings
     from support.blender_util import Recorder      # imports restir_gi: after load_addon
     bpy.ops.wm.open_mainfile(filepath=str(args.blend))
     scene = bpy.context.scene
     recorder = Recorder()
     bpy.app.handlers.depsgraph_update_post.append(recorder)
     rng = np.random.default_rng(11)
-    base = restir_settings(scene)
-    base = dataclasses.replace(base, max_bounces=args.bounces, light_samples=args.light_samples)
+    # What the file's viewport runs with (draw.session_settings), but for the
+    # mode, the fixed scale and no sample limit; --bounces and --light-samples
+    # override the file's.
+    settings = session_settings(scene)
+    bounces = settings["max_bounces"] if args.bounces is None else args.bounces
+    base = settings["restir"]
+    if args.light_samples is not None:
+        base = dataclasses.replace(base, light_samples=args.light_samples)
     lines += [f"### Viewport: {args.blend.name}, {args.width}x{args.height} viewport, mode {args.mode}, "
-              f"max_bounces {args.bounces}, light_samples {base.light_samples}", "",
+              f"max_bounces {bounces}, light_samples {base.light_samples}, denoiser {'on' if base.denoise else 'off'}",
+              "",
               "| scale | render size | steady frames/s | edit | sync + frame (s) | threaded, edit to frame (s) |",
               "|---|---|---:|---|---:|---:|"]
     for scale in args.scales:
-        session = vp.ViewportSession(mode=args.mode, scale=scale, max_bounces=args.bounces,
-                                     restir=base, samples=0)
+        session = vp.ViewportSession(mode=args.mode, scale=scale, max_bounces=bounces, restir=base, samples=0,
+                                     seed=settings["seed"], denoise_start=settings["denoise_start"])
         session.resize(args.width, args.height)
         session.sync(bpy.context.evaluated_depsgraph_get())
         for _ in range(2):
@@ -249,8 +256,8 @@ def main():
     ap.add_argument("--height", type=int, default=720)
     ap.add_argument("--scales", nargs="+", default=["HALF", "QUARTER"])
     ap.add_argument("--mode", default="RESTIR_BIASED")
-    ap.add_argument("--bounces", type=int, default=4)
-    ap.add_argument("--light-samples", type=int, default=16)
+    ap.add_argument("--bounces", type=int, default=None, help="max bounces (default: the file's)")
+    ap.add_argument("--light-samples", type=int, default=None, help="default: the file's")
     ap.add_argument("--frames", type=int, default=3, help="steady frames timed per scale")
     ap.add_argument("--repeats", type=int, default=2, help="edits of each kind per measure")
     ap.add_argument("--big-triangles", type=int, default=1_000_000)
