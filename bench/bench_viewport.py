@@ -197,10 +197,13 @@ def part_viewport(args, lines):
     if args.light_samples is not None:
         base = dataclasses.replace(base, light_samples=args.light_samples)
     lines += [f"### Viewport: {args.blend.name}, {args.width}x{args.height} viewport, mode {args.mode}, "
-              f"max_bounces {bounces}, light_samples {base.light_samples}, denoiser {'on' if base.denoise else 'off'}",
+              f"max_bounces {bounces}, light_samples {base.light_samples}, "
+              f"denoiser {'on' if base.denoise else 'off'}, {'threads' if args.no_twin else 'twin process'}",
               "",
               "| scale | render size | steady frames/s | edit | sync + frame (s) | threaded, edit to frame (s) |",
               "|---|---|---:|---|---:|---:|"]
+    if args.no_twin:
+        vp.ViewportSession.twin_process = False     # passes on two threads, as before the twin
     for scale in args.scales:
         session = vp.ViewportSession(mode=args.mode, scale=scale, max_bounces=bounces, restir=base, samples=0,
                                      seed=settings["seed"], denoise_start=settings["denoise_start"])
@@ -258,6 +261,7 @@ def main():
     ap.add_argument("--mode", default="RESTIR_BIASED")
     ap.add_argument("--bounces", type=int, default=None, help="max bounces (default: the file's)")
     ap.add_argument("--light-samples", type=int, default=None, help="default: the file's")
+    ap.add_argument("--no-twin", action="store_true", help="the viewport's passes on threads, no twin process")
     ap.add_argument("--frames", type=int, default=3, help="steady frames timed per scale")
     ap.add_argument("--repeats", type=int, default=2, help="edits of each kind per measure")
     ap.add_argument("--big-triangles", type=int, default=1_000_000)
