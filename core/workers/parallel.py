@@ -67,7 +67,7 @@ class Workers:
     """A small pool that maps a function over contiguous pixel ranges."""
 
     def __init__(self, threads=None, max_range=MAX_PIXELS_PER_RANGE, processes=True,
-                 twin_wait=None):
+                 twin_wait=None, twin_max_pixels=None):
         """processes: render loops in ``twin`` may fork a second process
         (Linux, two workers); False keeps every pass on threads. twin_wait:
         (seconds, factor), how long the leader waits for the twin's half of
@@ -75,11 +75,14 @@ class Workers:
         defaults). After a twin did not answer in time these workers fork no
         more (processes goes False): a fork that hung once may hang again,
         and each costs the wait. (A twin that exited, say because it could
-        not follow the scene's edits, is forked anew for the next loop.)"""
+        not follow the scene's edits, is forked anew for the next loop.)
+        twin_max_pixels: larger images stay on threads (None: any image of
+        two ranges)."""
         self.threads = max(1, threads or min(os.cpu_count() or 1, 2))
         self.max_range = max(1, int(max_range))
         self.processes = bool(processes) and forked.AVAILABLE and self.threads == 2
         self.twin_wait = None if twin_wait is None else tuple(twin_wait)
+        self.twin_max_pixels = twin_max_pixels
         self._balance = {}
         self._parked = None             # (Twin, token) waiting for the next loop
         self._pool = (ThreadPoolExecutor(self.threads, initializer=_mark_worker)
@@ -160,7 +163,8 @@ class Workers:
         if outer is not None:       # a loop inside a twin's loop: its roles hold
             yield outer.leader
             return
-        use = self.processes and self._pool is not None and len(self.ranges(n)) == 2 and not in_worker()
+        use = self.processes and self._pool is not None and len(self.ranges(n)) == 2 and not in_worker() \
+            and (self.twin_max_pixels is None or n <= self.twin_max_pixels)
         twin = None
         parked, self._parked = self._parked, None
         if parked is not None:

@@ -130,6 +130,7 @@ class SceneApplier:
             eps = RAY_EPS_RELATIVE * scene.extent()
         self._scene = scene
         if self._workers is None:
-            self._workers = Workers(self.threads, processes=self.twin_process, twin_wait=self.twin_wait)
+            self._workers = Workers(self.threads, processes=self.twin_process, twin_wait=self.twin_wait,
+                                    twin_max_pixels=self.twin_max_pixels)
         self._ctx = RenderContext(scene, transparency.wrap(self._accel, scene), lights, eps, self._workers)
 

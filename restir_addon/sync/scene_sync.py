@@ -29,9 +29,10 @@ class SceneSync(SceneReader, SceneApplier):
 
     # Render loops may fork a twin process for the second core (core/workers/forked.py);
     # twin_wait: (seconds, factor) the leader waits for its half of a pass
-    # (None: forked's defaults).
+    # (None: forked's defaults); twin_max_pixels: larger images on threads.
     twin_process = True
     twin_wait = None
+    twin_max_pixels = None
 
     def __init__(self, threads=None):
         self.work = Work()

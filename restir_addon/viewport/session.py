@@ -82,17 +82,23 @@ class ViewportSession(Refinement, SceneSync):
     accumulated; the frames right after a change count as sample 1).
     """
 
-    # ReSTIR frames run in two processes where the platform forks, as final
-    # renders do (core/workers/forked.py): two threads gave a 320x180 frame
-    # 1.3x of one core, the twin ~1.8x. Between frames the twin is parked and
-    # sent the new view, or the scene's edits (core/render.render_restir's
-    # Continuation); a frame abandoned for an edit ends it, and the next
-    # forks again (~10 ms). A twin that does not answer within a second, or
-    # four times the leader's half of the pass, is left and the session goes
-    # on without one (parallel.Workers): the view must not freeze for the
-    # final renders' 30 s.
+    # Small ReSTIR frames run in two processes where the platform forks, as
+    # final renders do (core/workers/forked.py): on two threads a 320x180
+    # frame's short numpy calls hand the GIL over at every call
+    # (bench/bench_viewport.py --no-twin: 2.4-2.6 frames/s against 3.9-4.0).
+    # Between frames the twin is parked and sent the new view, or the scene's
+    # edits (core/render.render_restir's Continuation); a frame abandoned for
+    # an edit ends it, and the next forks again (~10 ms). Above
+    # twin_max_pixels frames stay on threads, whose calls are long enough to
+    # overlap: at 524x347 the twin took 0.72 s a frame against 0.76 s
+    # headless, and 1.7 s against 1.26 s in the real window (one run each),
+    # where the software-drawn view takes a share of the cores.
+    # A twin that does not answer within a second, or four times the
+    # leader's half of a pass, is left and the session goes on without one
+    # (parallel.Workers): the view must not freeze for the final renders' 30 s.
     twin_process = True
     twin_wait = (1.0, 4.0)
+    twin_max_pixels = 1 << 17
 
     def __init__(self, mode="RESTIR_BIASED", scale=defaults.VIEWPORT_SCALE, samples=defaults.VIEWPORT_SAMPLES,
                  frame_budget=defaults.VIEWPORT_FRAME_BUDGET, settle_frames=defaults.VIEWPORT_SETTLE_FRAMES,

@@ -371,3 +371,14 @@ def test14_after_a_lost_twin_the_workers_fork_no_more():
         workers.close()
     assert np.array_equal(first, np.arange(N)) and np.array_equal(second, np.arange(N))
     assert len(started) == 1 and gone(started[0])
+
+
+def test15_images_above_twin_max_pixels_stay_on_threads():
+    workers = Workers(2, twin_max_pixels=N - 1)
+    try:
+        with workers.twin(N) as lead:
+            assert lead and forked.active() is None
+        with workers.twin(N - 1) as lead:
+            assert lead and forked.active() is not None
+    finally:
+        workers.close()
