@@ -152,10 +152,12 @@ def denoise(workers, data, depth, valid, width, height, iterations=ITERATIONS, t
         zr = np.where(inv > 0, np.clip(zr, -DEPTH_MAX, DEPTH_MAX), np.float32(0)).astype(np.float32)
         m1, m2 = _moments(rows)
         count = np.clip(np.nan_to_num(rows[:, 12], nan=1.0), 1.0 / 64, 1e9).astype(np.float32)
+        lengths = np.where(inv > 0, length, 0.0).astype(np.float32)    # of the mean normals (edge_filter)
         return (c[:, 0].copy(), c[:, 1].copy(), c[:, 2].copy(), luminance(c).astype(np.float32),
-                nrm[:, 0] * inv, nrm[:, 1] * inv, nrm[:, 2] * inv, zr, m1, m2, count)
+                nrm[:, 0] * inv, nrm[:, 1] * inv, nrm[:, 2] * inv, zr, m1, m2, count, lengths)
 
-    red, green, blue, lum, nx, ny, nz, z, m1, m2, count = workers.map_into(run(prepare), n)
+    red, green, blue, lum, nx, ny, nz, z, m1, m2, count, lengths = workers.map_into(run(prepare), n)
+    lengths = lengths.reshape(shape)
     frames = count
     raw = lum
     if FIREFLY_RATIO > 0 and iterations:       # (no filter: the means as they are)
@@ -193,7 +195,7 @@ def denoise(workers, data, depth, valid, width, height, iterations=ITERATIONS, t
 
         def iteration(a, b, img=img, step=step, last=last):
             r0, r1 = a // width, (b - 1) // width + 1
-            out = atrous(img, zimg, nimg, gimg, r0, r1, step, need_var=not last)
+            out = atrous(img, zimg, nimg, gimg, r0, r1, step, need_var=not last, lengths=lengths)
             lo, hi = a - r0 * width, b - r0 * width
             return tuple(x.ravel()[lo:hi] for x in (out[:3] if last else out))
 

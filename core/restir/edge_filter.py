@@ -24,6 +24,20 @@ SIGMA_LUMINANCE = 4.0       # SVGF's sigma_l
 DEPTH_FLOOR = 1e-3          # share of the depth always allowed between taps (float rounding)
 LUMINANCE_FLOOR = 1e-10     # added to the luminance scale (no division by zero)
 B3 = (1.0 / 16, 1.0 / 4, 3.0 / 8, 1.0 / 4, 1.0 / 16)
+# A pixel on an edge between two surfaces (a room's corner, where a wall
+# meets the ceiling) sees one or the other from frame to frame (the pixel
+# filter's jitter): the mean of its normals lies between theirs and is
+# shorter than 1. Against either side's normals the weight (n_p . n_q)^128
+# is nothing, so the filter left such pixels as they were, noisy: dotted
+# lines along the edges of a still. Where that length L is under
+# MIXED_LENGTH (2 % of a right angle's other side), a tap's normal weight
+# is the mean normal's projection on the tap's, max(L n_p . n_q, 0): each
+# surface in about the share of the pixel it covers (the projections of a
+# mean of perpendicular normals are the shares). Its neighbours weigh it as
+# before. Glossy interior, still camera, frame 32 against Cycles at 4096
+# spp: MSE 0.000785 -> 0.000637 (the cosine to 1 / L capped at 1 instead,
+# so both sides in full: 0.000648).
+MIXED_LENGTH = 0.98
 
 
 @dataclass
@@ -227,11 +241,42 @@ def _blur3(v, r0, r1):
     return q * hor[:-2] + np.float32(0.5) * hor[1:-1] + q * hor[2:]
 
 
-def atrous(img, zimg, nimg, gimg, r0, r1, step, need_var=True):
+def _mixed_centres(blk, lengths, nc):
+    """(rows, unit normals (3 of (k,)), lengths (k,)) of the block's centres
+    whose mean normal is shorter than MIXED_LENGTH and not zero (no
+    surface), or None where there are none. nc: the centres' normals times
+    NORMAL_POWER."""
+    if lengths is None:
+        return None
+    length = blk.centre(blk.flat(lengths))
+    rows = np.nonzero((length < np.float32(MIXED_LENGTH)) & (length > 0))[0]
+    if len(rows) == 0:
+        return None
+    unit = [np.take(x, rows) * np.float32(1.0 / NORMAL_POWER) for x in nc]
+    return rows, unit, np.take(length, rows)
+
+
+def _mixed_terms(blk, mixed, n_flat, offsets):
+    """(taps, k) float32: what each tap (flat offsets, in the a-trous loop's
+    order) adds to the log weight of the mixed centres: log max(L n_p . n_q,
+    0) in place of NORMAL_POWER (n_p . n_q - 1)."""
+    rows, unit, length = mixed
+    at = blk.base + rows[None, :] + np.asarray(offsets, np.int64)[:, None]
+    cos = unit[0] * np.take(n_flat[0], at)
+    cos += unit[1] * np.take(n_flat[1], at)
+    cos += unit[2] * np.take(n_flat[2], at)
+    out = np.log(np.maximum(cos * length, np.float32(1e-30)))
+    out -= np.float32(NORMAL_POWER) * (cos - np.float32(1.0))
+    return out.astype(np.float32, copy=False)
+
+
+def atrous(img, zimg, nimg, gimg, r0, r1, step, need_var=True, lengths=None):
     """One a-trous iteration (taps at multiples of step) of img (Image) on
     rows r0..r1: (red, green, blue, lum, var) as (r1 - r0, W) float32
     arrays (var None without need_var). zimg (H, W), nimg (3, H, W): depth
-    and unit normals; gimg: the depth gradient images (gx, gy)."""
+    and unit normals; gimg: the depth gradient images (gx, gy); lengths (H,
+    W) or None: the lengths of the mean normals nimg's are the directions
+    of (see MIXED_LENGTH)."""
     height, width = zimg.shape
     shape = (height, width)
     blk = Block(r0, r1, 2 * step, width, height)
@@ -243,6 +288,10 @@ def atrous(img, zimg, nimg, gimg, r0, r1, step, need_var=True):
     z_flat = blk.flat(zimg)
     steps = [(i * step, j * step) for i in range(3) for j in range(3) if i or j]
     nc, zc, inv_z = geometry(blk, n_flat, z_flat, gimg[0][r0:r1], gimg[1][r0:r1], steps)
+    mixed = _mixed_centres(blk, lengths, nc)
+    offsets = [ty * step * blk.wp + tx * step for ty in range(-2, 3) for tx in range(-2, 3) if tx or ty]
+    mixed_terms = None if mixed is None else _mixed_terms(blk, mixed, n_flat, offsets)
+    tap = 0
     lc = blk.centre(l_flat)
     inv_l = blk.centres(np.float32(1.0) / (np.float32(SIGMA_LUMINANCE) * np.sqrt(_blur3(v_img, r0, r1))
                                            + np.float32(LUMINANCE_FLOOR)))
@@ -261,6 +310,9 @@ def atrous(img, zimg, nimg, gimg, r0, r1, step, need_var=True):
             constant = np.float32(np.log(B3[ty + 2] * B3[tx + 2]) - NORMAL_POWER)
             nq = [blk.tap(n, oy, ox) for n in n_flat]
             weight(w, tmp, nc, nq, zc, blk.tap(z_flat, oy, ox), inv_z[(abs(ox), abs(oy))], constant)
+            if mixed_terms is not None:
+                w[mixed[0]] += mixed_terms[tap]
+            tap += 1
             np.subtract(blk.tap(l_flat, oy, ox), lc, out=tmp)
             np.abs(tmp, out=tmp)
             tmp *= inv_l
