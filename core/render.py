@@ -11,7 +11,9 @@ from . import scene_patch
 from .camera.projection import PixelFilter
 from .camera.film import Film
 from .integrators.path import camera_pass
+from .workers.forked import LoopAbandoned
 from .workers.parallel import Continuation, concat_rows, release_free_memory
+from .util.checksum import checksum
 from .restir import BIASED
 from .restir.accumulation import STILL
 from .object_motion import render_blurred
@@ -152,10 +154,12 @@ def render_restir(ctx, restir, settings, frame, frames=1, fresh=False, on_frame=
     scene = ctx.scene
     # The twin process (core/workers/forked.py) goes on into the next frame's loop of
     # an animation if the scene changed only its camera since, or objects
-    # moved (core/scene_patch.py).
+    # moved (core/scene_patch.py), and after a frame the viewport abandoned
+    # for an edit if both processes' ReSTIR states are alike.
     keep = Continuation(lambda: _continuation_token(ctx, restir), (ctx, restir), _resume_restir,
                         (scene.camera, settings, frame, frames, fresh),
-                        patch=lambda state, token: _patch(state[0], ctx, token, restir))
+                        patch=lambda state, token: _patch(state[0], ctx, token, restir),
+                        fingerprint=_restir_fingerprint)
     with ctx.workers.twin(scene.width * scene.height, keep) as lead:
         for i in range(max(1, frames)):
             if lead and should_stop is not None and should_stop():
@@ -242,5 +246,16 @@ def _resume_restir(ctx, restir, patch, camera, settings, frame, frames, fresh):
     if patch is not None:
         ctx = scene_patch.apply(ctx, patch)
     ctx = _with_camera(ctx, camera)
-    render_restir(ctx, restir, settings, frame, frames, fresh)
+    try:
+        render_restir(ctx, restir, settings, frame, frames, fresh)
+    except LoopAbandoned:
+        pass        # the leader stopped the loop; both unwound it (forked.Twin.abandon)
     return ctx, restir
+
+
+def _restir_fingerprint(ctx, restir):
+    """What both processes must agree on to go on after an abandoned frame:
+    the ReSTIR state (frames, history, scene-change bookkeeping). A frame
+    left in a pass that writes the history in place (sample validation)
+    differs, and the twin is then ended."""
+    return checksum(restir.frames, restir.history, restir.changes)

@@ -21,11 +21,14 @@ import numpy as np
 from .accel import Accel, RayHits
 from .boxes import crosses_box
 from ..scene import column_bounds
+from ..workers.forked import LoopAbandoned
 
 
-class TraceInterrupted(Exception):
+class TraceInterrupted(LoopAbandoned):
     """Raised by a query when the accel's ``interrupt`` callable returns True,
-    so a frame in progress can be abandoned between two ray batches."""
+    so a frame in progress can be abandoned between two ray batches (a twin
+    process running the frame's other half unwinds it too:
+    core/workers/forked.py)."""
 
 
 def _compact(vertices, triangles):

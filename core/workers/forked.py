@@ -63,6 +63,12 @@ class TwinSilent(TwinLost):
     """The other process did not answer in time (it may be stuck for good)."""
 
 
+class LoopAbandoned(Exception):
+    """The leader stopped a loop mid-way (the viewport's frame, for an edit).
+    Raised in the leader by whatever stopped it, and in the twin at its next
+    exchange: both unwind the loop, and the twin may be kept (``abandon``)."""
+
+
 _local = threading.local()     # the render loop's Twin, on the thread that runs it
 
 
@@ -83,6 +89,7 @@ class Twin:
         self.balance = {}       # pass -> the parent's share of its pixels
         self.wait = (WAIT_SECONDS, WAIT_FACTOR)     # how long the parent waits for a pass (start)
         self.hung = False       # the parent went on alone: the child did not answer in time
+        self.abandoned = None   # (child) the fingerprint function of a loop the leader abandoned
         self._files = None
         self._pipes = None
 
@@ -158,30 +165,72 @@ class Twin:
             return False
         k = self.calls
         try:
-            self._send(k, (fn, args))
+            self._send(k, ("resume", fn, args))
         except TwinLost:
             return False
         self.calls += 1
         _local.twin = self
         return True
 
+    def abandon(self, fingerprint, state):
+        """(parent) After the leader unwound a loop it abandoned
+        (LoopAbandoned): tell the twin, which unwinds it at the exchange it
+        is at, and compare the states both reached: fingerprint(*state), a
+        module-level function, is computed on each side. True if they agree
+        (the twin then waits for ``resume``, as after a completed loop);
+        otherwise, or if the twin does not answer within the wait, it is
+        ended. A pass the leader left half done may have written rows of
+        the state only the twin finished: the fingerprints then differ."""
+        k = self.calls
+        try:
+            self._send(k, ("abandon", fingerprint))
+            mine = fingerprint(*state)
+            self._receive(k, self.wait[0])          # the twin's half of the pass it was in
+            tag, theirs = self._receive(k + 1, self.wait[0])
+        except TwinLost:
+            self.end()
+            return False
+        self.calls = k + 2
+        if tag != "ack" or theirs != mine:
+            self.end()
+            return False
+        self.park()
+        return True
+
     def serve(self, state):
         """(child) Wait for the parent's next loop and run it, again and
         again: state = fn(*state, *args) for each (fn, args) resumed with.
-        Exits when none comes for IDLE_SECONDS, when the parent is gone, or
-        when a loop fails (the parent then goes on alone). Never returns."""
+        A loop the leader abandoned (LoopAbandoned) must still return the
+        state it reached; this side then acknowledges with its fingerprint
+        (``abandon``). Exits when no loop comes for IDLE_SECONDS, when the
+        parent is gone, when a loop fails (the parent then goes on alone),
+        or when an abandon arrives here, after a loop this side completed
+        and the leader did not. Never returns."""
         try:
+            self.acknowledge(state)
             while True:
                 ready, _, _ = select.select([self._pipes[0]], [], [], IDLE_SECONDS)
                 if not ready:
                     break
                 k = self.calls
-                fn, args = self._receive(k)
+                tag, *message = self._receive(k)
                 self.calls += 1
+                if tag != "resume":
+                    break
+                fn, args = message
                 state = fn(*state, *args)
+                self.acknowledge(state)
         except BaseException:  # noqa: BLE001 -- the parent gone or a loop failed: exit, never return
             pass
         os._exit(0)
+
+    def acknowledge(self, state):
+        """(child) If the leader abandoned the last loop, send it this side's
+        fingerprint of the state reached (see ``abandon``)."""
+        fingerprint, self.abandoned = self.abandoned, None
+        if fingerprint is not None:
+            self._send(self.calls, ("ack", fingerprint(*state)))
+            self.calls += 1
 
     def split(self, parts):
         """(mine, theirs) of a pass's ranges: the parent takes the first half."""
@@ -330,6 +379,9 @@ def run_pass(twin, fn, parts, written):
         return parts, results + [fn(a, b) for a, b in theirs]
     if payload[0] == "error":   # the parent raises it
         twin.end()
+    if other[0] == "abandon":   # (child) the leader stopped the loop: unwind it as it did
+        twin.abandoned = other[1]
+        raise LoopAbandoned("the leader abandoned the loop")
     if other[0] == "error":
         twin.end()
         raise other[1]

@@ -50,13 +50,18 @@ class Continuation:
     it; patch: (parked state, parked token) -> what brings the twin's copies
     of a parked state whose token differs to the caller's (picklable; None
     where nothing does), passed to resume (None when the tokens are equal);
-    complete: set by the loop when it ran to its end."""
+    complete: set by the loop when it ran to its end; fingerprint:
+    module-level function (state...) -> a value both processes compute
+    after the leader abandoned the loop (forked.LoopAbandoned), to keep the
+    twin if they agree (None: the twin of an abandoned loop is ended).
+    resume must then return the state it reached all the same."""
     token: object
     state: tuple
     resume: object
     args: tuple
     complete: bool = False
     patch: object = None
+    fingerprint: object = None
 
 
 def _mark_worker():
@@ -157,8 +162,11 @@ class Workers:
         parked one, or whose ``keep.patch`` brings the parked state to its
         own, resumes it (``keep.resume(*state, patch, *keep.args)`` in the
         twin) instead of forking again: the page faults that follow a fork
-        are paid once per animation, not once per frame. Otherwise the twin
-        is ended when the block ends, in both processes."""
+        are paid once per animation, not once per frame. A loop the leader
+        abandons (forked.LoopAbandoned) parks the twin too when
+        ``keep.fingerprint`` finds both states alike (forked.Twin.abandon):
+        the viewport's frame restarted after an edit forks no more.
+        Otherwise the twin is ended when the block ends, in both processes."""
         outer = forked.active()
         if outer is not None:       # a loop inside a twin's loop: its roles hold
             yield outer.leader
@@ -185,16 +193,23 @@ class Workers:
         if twin is None:
             yield True
             return
-        completed = False
+        completed = abandoned = False
         try:
             yield twin.leader
             completed = keep is not None and keep.complete
+        except forked.LoopAbandoned:
+            # The leader stopped the loop (the twin unwinds it at its next
+            # exchange): both may go on from the state they reached.
+            abandoned = keep is not None and keep.fingerprint is not None
+            raise
         finally:
             self._balance = dict(twin.balance)     # where to split the passes of the next loop
             if twin.leader and twin.hung:
                 self.processes = False
-            if completed and not twin.leader:
+            if (completed or abandoned) and not twin.leader:
                 twin.serve(keep.state)      # never returns
+            if abandoned and twin.pid is not None:
+                completed = twin.abandon(keep.fingerprint, keep.state)
             if completed and twin.pid is not None:
                 twin.park()
                 self._parked = (twin, keep.token(), keep.state)

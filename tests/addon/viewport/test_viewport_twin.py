@@ -1,7 +1,8 @@
 """The viewport's ReSTIR frames in two processes (core/workers/forked.py):
 the twin is forked once and kept between frames while the view turns and an
-object moves, a frame abandoned for an edit ends it, and the images are
-bitwise those of two threads."""
+object moves, and across a frame abandoned for an edit; the images are
+bitwise those of two threads, and those of a twin forked anew after the
+abandoned frame."""
 
 import dataclasses
 import math
@@ -22,7 +23,25 @@ def _turned(camera, degrees):
     return dataclasses.replace(camera, to_world=m)
 
 
-def _frames(vp, recorder, twin, monkeypatch):
+def _abandon(vp, session, nth):
+    """Render a frame the leader abandons at its nth poll of the interrupt
+    (an edit arriving then)."""
+    accel = session._accel
+    polls, interrupt = [0], accel.interrupt
+
+    def edit_arrives():
+        polls[0] += 1
+        return polls[0] == nth or interrupt()
+    accel.interrupt = edit_arrives
+    try:
+        with pytest.raises(vp.TraceInterrupted):
+            session.render_step()
+    finally:
+        accel.interrupt = interrupt
+    return polls[0]
+
+
+def _frames(vp, recorder, twin, monkeypatch, abandon_at=None):
     import bpy
     monkeypatch.setattr(vp.ViewportSession, "twin_process", twin)
     build_scene()
@@ -36,6 +55,8 @@ def _frames(vp, recorder, twin, monkeypatch):
             frames.append(session.frame.copy())
 
     render(3)
+    if abandon_at is not None:
+        assert _abandon(vp, session, abandon_at) == abandon_at
     session.set_view(_turned(session.view, 2.0))
     render(2)
     mover = bpy.data.objects["Mover"]
@@ -73,5 +94,42 @@ def test01_frames_of_the_twin_are_those_of_threads_and_it_is_kept(vp, recorder, 
     assert calls["start"] <= 2 and calls["resume"] >= 5, calls
     assert len(twin) == len(threads) == 7
     for i, (a, b) in enumerate(zip(twin, threads)):
+        assert np.isfinite(a).all()
+        assert np.array_equal(a, b), f"frame {i}"
+
+
+def _count_forks(monkeypatch, forked):
+    calls = {"start": 0}
+    start = forked.Twin.start
+
+    def counted_start(*args, **kw):
+        calls["start"] += 1
+        return start(*args, **kw)
+    monkeypatch.setattr(forked.Twin, "start", staticmethod(counted_start))
+    return calls
+
+
+@pytest.mark.parametrize("nth", [1, 6, 30])
+def test02_a_frame_abandoned_for_an_edit_keeps_the_twin(vp, recorder, monkeypatch, nth):
+    """The leader abandons a frame at its nth interrupt poll (the first
+    pass, the middle of the frame, shading): the twin unwinds it too and is
+    kept, and the frames that follow are bitwise those of a twin forked
+    anew after the abandoned frame."""
+    from restir_gi.core.workers import forked
+    if not forked.AVAILABLE:
+        pytest.skip("no fork on this platform")
+    calls = _count_forks(monkeypatch, forked)
+    kept = _frames(vp, recorder, True, monkeypatch, abandon_at=nth)
+    assert calls["start"] == 1
+
+    def ended(self, fingerprint, state):
+        self.end()
+        return False
+    monkeypatch.setattr(forked.Twin, "abandon", ended)
+    calls["start"] = 0
+    anew = _frames(vp, recorder, True, monkeypatch, abandon_at=nth)
+    assert calls["start"] == 2
+    assert len(kept) == len(anew) == 7
+    for i, (a, b) in enumerate(zip(kept, anew)):
         assert np.isfinite(a).all()
         assert np.array_equal(a, b), f"frame {i}"

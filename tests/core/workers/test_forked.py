@@ -15,6 +15,7 @@ from restir_gi.core.workers.parallel import MIN_PIXELS_PER_WORKER, Workers
 from restir_gi.core.render import render_restir
 from restir_gi.core.restir import BIASED, UNBIASED, ReSTIRGI, ReSTIRSettings
 from support.scenes import cornell_box
+from support.twin_util import gone
 
 pytestmark = pytest.mark.skipif(not forked.AVAILABLE, reason="fork and memfd_create: Linux only")
 
@@ -27,14 +28,6 @@ def workers():
     w = Workers(2)
     yield w
     w.close()
-
-
-def gone(pid):
-    try:
-        os.kill(pid, 0)
-    except ProcessLookupError:
-        return True
-    return False
 
 
 def test01_passes_are_whole_in_the_parent_and_rows_written_in_place_arrive(workers):
@@ -138,17 +131,6 @@ def test06_no_twin_without_processes_or_for_large_images():
             workers.close()
 
 
-@pytest.fixture(scope="module")
-def contexts():
-    scene = cornell_box("area", 96, 96)
-    one = RenderContext.build(scene, threads=1)
-    two = RenderContext.build(scene, threads=2)
-    assert two.workers.processes and len(two.workers.ranges(96 * 96)) == 2
-    yield one, two
-    one.close()
-    two.close()
-
-
 @pytest.mark.slow
 @pytest.mark.parametrize("mode", [BIASED, UNBIASED])
 def test07_restir_frames_of_a_twin_loop_are_those_of_one_process(contexts, mode):
@@ -239,71 +221,7 @@ def test11_the_split_follows_where_the_time_goes(workers):
     assert shares[0] == 0.5 and shares[-1] > 0.6, shares
 
 
-def moving(scene, f, versions=(0, 0)):
-    """The scene seen from a camera moved along x for frame f."""
-    import copy
-    s = copy.copy(scene)
-    cam = copy.copy(scene.camera)
-    m = np.array(cam.to_world, np.float32)
-    m[0, 3] += 0.01 * f
-    cam.to_world = m
-    s.camera, s.versions = cam, versions
-    return s
-
-
-def parked_pid(ctx):
-    parked = ctx.workers._parked
-    return None if parked is None else parked[0].pid
-
-
-@pytest.mark.parametrize("mode", [BIASED, UNBIASED])
-def test12_an_animation_keeps_its_twin_while_only_the_camera_moves(contexts, mode):
-    """Frames of a moving camera (render_restir per frame, as the add-on's
-    animation renders) resume the parked twin instead of forking, and give
-    the one-worker images; a geometry edit (its change counter) forks anew."""
-    import dataclasses
-    one, two = contexts
-    settings = ReSTIRSettings(mode=mode, max_bounces=2, seed=5)
-    images, pids = {}, []
-    for base in (one, two):
-        restir = ReSTIRGI()
-        out = []
-        for f in range(6):
-            versions = (0, 0) if f < 4 else (1, 1)
-            ctx = dataclasses.replace(base, scene=moving(base.scene, f, versions))
-            out.append(render_restir(ctx, restir, settings, f, 3 if f == 0 else 1, fresh=f == 0).color.copy())
-            if base is two:
-                pids.append(parked_pid(two))
-        images[base is two] = out
-    for a, b in zip(images[False], images[True]):
-        assert np.array_equal(a, b)
-    assert None not in pids and len(set(pids[:4])) == 1 and pids[4] != pids[3] and pids[5] == pids[4]
-    assert gone(pids[0])
-    two.workers.end_twin()
-    assert gone(pids[-1]) and two.workers._parked is None
-
-
-def test13_a_stopped_loop_or_another_kind_of_loop_does_not_resume_the_twin(contexts):
-    import dataclasses
-    _, two = contexts
-    restir = ReSTIRGI()
-    settings = ReSTIRSettings(mode=BIASED, max_bounces=2, seed=5)
-    ctx = dataclasses.replace(two, scene=moving(two.scene, 0))
-    render_restir(ctx, restir, settings, 0, 2, fresh=True)
-    first = parked_pid(two)
-    calls = []
-    render_restir(ctx, restir, settings, 1, 3, should_stop=lambda: calls.append(1) or len(calls) > 1)
-    assert two.workers._parked is None and gone(first)      # stopped early: ended
-    film = render_frame(ctx, RenderSettings(samples=2, max_bounces=2, seed=1), frame=1)
-    pt = parked_pid(two)
-    film2 = render_frame(dataclasses.replace(two, scene=moving(two.scene, 1)), RenderSettings(samples=2, max_bounces=2, seed=1), frame=2)
-    assert parked_pid(two) == pt and film.count == film2.count == 2
-    render_restir(ctx, restir, settings, 2, 1)          # a ReSTIR loop after path tracing: a new twin
-    assert parked_pid(two) not in (None, pt) and gone(pt)
-    two.workers.end_twin()
-
-
-def test14_a_loop_run_by_another_thread_than_the_main_one(workers):
+def test12_a_loop_run_by_another_thread_than_the_main_one(workers):
     """Blender renders F12 in a job thread: the twin forks from it (signals
     can only be set from the main thread) and the loop is whole."""
     import threading
@@ -322,7 +240,7 @@ def test14_a_loop_run_by_another_thread_than_the_main_one(workers):
     assert gone(int(got["pids"][-1]))
 
 
-def test15_forking_a_process_with_threads_warns_nothing(workers):
+def test13_forking_a_process_with_threads_warns_nothing(workers):
     """Blender's process has threads; Python 3.12+ warns at every fork of such
     a process (the child may find a lock held), which the twin provides for
     (the parent goes on alone). The fork adds no warning to the render."""
