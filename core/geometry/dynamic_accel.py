@@ -21,6 +21,7 @@ import numpy as np
 from .accel import Accel, RayHits
 from .boxes import crosses_box
 from ..scene import column_bounds
+from ..workers import forked
 from ..workers.forked import LoopAbandoned
 
 
@@ -246,7 +247,11 @@ class DynamicAccel:
     def poll(self):
         """Raise TraceInterrupted if ``interrupt`` says so: every query does,
         and long passes without queries call it between their steps."""
-        if self.interrupt is not None and self.interrupt():
+        if self.interrupt is None:
+            return
+        # In a twin process the callable is a copy of the leader's, which
+        # nothing sets there: the leader's abandon comes through the twin.
+        if forked.told_to_stop() if forked.in_twin() else self.interrupt():
             raise TraceInterrupted()
 
     def _query(self, origins, directions):

@@ -15,9 +15,15 @@ the whole pass and go on alike; the serial work between passes is done by
 both. Only the parent (the leader) reports progress and decides to stop; when
 the loop ends the child is killed, or parked (``serve``) until the next loop
 resumes it (the next frame of an animation whose camera alone moved:
-Workers.twin's Continuation). The copy-on-write page faults that follow a
+Workers.twin's Continuation). A loop the leader abandons mid-way (the
+viewport's frame, for an edit: LoopAbandoned) is unwound by both: the
+leader writes a word on a stop pipe, which the twin's interruptible ray
+queries poll, and sends the abandon at the exchange the twin is at; the
+twin answers with a checksum of its state, and is parked if the leader's
+is the same. The copy-on-write page faults that follow a
 fork are paid once per fork, not at every pass. Each pass is split where the
-two processes took equal time on it the last times.
+two processes took equal time on it the last times (twin_pass.py runs a
+pass).
 
 Exchange: each side writes a pass's results (pickle protocol 5, arrays as
 raw buffers) into an anonymous memory file of its own, two of them used in
@@ -40,8 +46,6 @@ import signal
 import struct
 import sys
 import threading
-import time
-import traceback
 import warnings
 
 import numpy as np
@@ -78,6 +82,19 @@ def active():
     return getattr(_local, "twin", None)
 
 
+def in_twin():
+    """True in the child process of a render loop (not the leader)."""
+    twin = active()
+    return twin is not None and not twin.leader
+
+
+def told_to_stop():
+    """In the child of a render loop: the leader abandoned the loop, which
+    this side unwinds at its next poll (Twin.told_to_stop). False elsewhere."""
+    twin = active()
+    return twin is not None and twin.told_to_stop()
+
+
 class Twin:
     """The two processes of a forked render loop; ``leader`` in the parent."""
 
@@ -92,6 +109,8 @@ class Twin:
         self.abandoned = None   # (child) the fingerprint function of a loop the leader abandoned
         self._files = None
         self._pipes = None
+        self._stop = None       # a pipe of its own: the parent's "stop now" (``abandon``)
+        self.stopping = False   # (child) the loop was unwound on that word
 
     @staticmethod
     def start(balance=None, wait=None):
@@ -107,7 +126,7 @@ class Twin:
         files, pipes = [], []
         try:
             files = [os.memfd_create("restir-twin", os.MFD_CLOEXEC) for _ in range(4)]
-            pipes = [os.pipe(), os.pipe()]          # parent -> child, child -> parent
+            pipes = [os.pipe(), os.pipe(), os.pipe()]   # parent -> child, child -> parent, stop
             with warnings.catch_warnings():
                 # Python 3.12+ warns that a fork of a multi-threaded process
                 # (Blender's is) may leave the child stuck on a lock another
@@ -120,7 +139,7 @@ class Twin:
             for fd in files + [fd for p in pipes for fd in p]:
                 os.close(fd)
             return None
-        (p2c_r, p2c_w), (c2p_r, c2p_w) = pipes
+        (p2c_r, p2c_w), (c2p_r, c2p_w), (stop_r, stop_w) = pipes
         if pid == 0:
             # Nothing may raise out of here in the child: it would unwind
             # through the caller's stack (Blender's render code) in a copy of
@@ -129,7 +148,10 @@ class Twin:
                 twin.leader = False
                 os.close(p2c_w)
                 os.close(c2p_r)
+                os.close(stop_w)
+                os.set_blocking(stop_r, False)
                 twin._pipes = (p2c_r, c2p_w)                 # read from, write to
+                twin._stop = stop_r
                 twin._files = (files[2:], files[:2])         # mine, theirs
                 if threading.current_thread() is threading.main_thread():
                     signal.signal(signal.SIGINT, signal.SIG_DFL)
@@ -140,7 +162,9 @@ class Twin:
             twin.pid = pid
             os.close(p2c_r)
             os.close(c2p_w)
+            os.close(stop_r)
             twin._pipes = (c2p_r, p2c_w)
+            twin._stop = stop_w
             twin._files = (files[:2], files[2:])
         _local.twin = twin
         return twin
@@ -183,11 +207,16 @@ class Twin:
         the state only the twin finished: the fingerprints then differ."""
         k = self.calls
         try:
+            # First a word on the stop pipe, which the twin's interruptible
+            # passes poll (``told_to_stop``): it stops at its next ray
+            # batch, not at the end of its half of the pass. Then the
+            # abandon itself, at the exchange it is at.
+            os.write(self._stop, b"!")
             self._send(k, ("abandon", fingerprint))
             mine = fingerprint(*state)
             self._receive(k, self.wait[0])          # the twin's half of the pass it was in
             tag, theirs = self._receive(k + 1, self.wait[0])
-        except TwinLost:
+        except (TwinLost, OSError):
             self.end()
             return False
         self.calls = k + 2
@@ -226,29 +255,37 @@ class Twin:
 
     def acknowledge(self, state):
         """(child) If the leader abandoned the last loop, send it this side's
-        fingerprint of the state reached (see ``abandon``)."""
+        fingerprint of the state reached (see ``abandon``). A loop this
+        side stopped on the stop word outside a pass has yet to take the
+        abandon at the exchange it was at."""
+        if self.stopping and self.abandoned is None:
+            k = self.calls
+            self.calls += 1
+            self._send(k, ("stopped",))
+            tag, *message = self._receive(k)
+            if tag != "abandon":
+                raise TwinLost(f"stopped, and the leader sent {tag!r}")
+            self.abandoned = message[0]
         fingerprint, self.abandoned = self.abandoned, None
         if fingerprint is not None:
+            self.stopping = False
+            try:
+                while os.read(self._stop, 64):      # the stop word is read now, never in the next loop
+                    pass
+            except BlockingIOError:
+                pass
             self._send(self.calls, ("ack", fingerprint(*state)))
             self.calls += 1
 
-    def split(self, parts):
-        """(mine, theirs) of a pass's ranges: the parent takes the first half."""
-        half = (len(parts) + 1) // 2
-        return (parts[:half], parts[half:]) if self.leader else (parts[half:], parts[:half])
-
-    def rebalance(self, key, parts, seconds):
-        """The parent's share of the next pass ``key`` from the (parent,
-        child) seconds of this one over ``parts``: each side's pixels per
-        second, halfway towards equal times (stable against noise)."""
-        (a, m), (_, b) = parts
-        if min(seconds) <= 0 or m <= a or b <= m:
-            return
-        share = (m - a) / (b - a)
-        fast = (m - a) / seconds[0]
-        slow = (b - m) / seconds[1]
-        even = fast / (fast + slow)
-        self.balance[key] = min(0.9, max(0.1, 0.5 * share + 0.5 * even))
+    def told_to_stop(self):
+        """(child) Whether the leader abandoned the loop (the stop word
+        arrived); the caller then unwinds it with LoopAbandoned."""
+        if self.leader or self._stop is None:
+            return False
+        if not self.stopping:
+            ready, _, _ = select.select([self._stop], [], [], 0)
+            self.stopping = bool(ready)
+        return self.stopping
 
     def exchange(self, payload, timeout=None):
         """Send this side's payload of the next pass and return the other's
@@ -332,78 +369,13 @@ class Twin:
                 except ChildProcessError:
                     break
             self.pid = None
-        for fd in list(self._pipes) + list(self._files[0]) + list(self._files[1]):
+        stop = [] if self._stop is None else [self._stop]
+        for fd in list(self._pipes) + list(self._files[0]) + list(self._files[1]) + stop:
             try:
                 os.close(fd)
             except OSError:
                 pass
-        self._pipes, self._files = (), ((), ())
-
-
-def run_pass(twin, fn, parts, written):
-    """(ranges, [fn(a, b) for (a, b) in ranges]) with the twin computing its
-    share: ``parts`` as given, or, for two ranges, split where the two
-    processes took equal time on this pass the last times (the bottom half
-    of a courtyard, ground and walls, costs twice the sky above it). Both
-    processes derive the split from the times they exchanged, so they agree;
-    the image does not depend on it (per-pixel random numbers).
-
-    written: whole-image arrays fn fills in place by rows; the other side's
-    rows of them are copied in. If the twin is lost the parent computes its
-    ranges too and goes on alone (the child exits)."""
-    key = (getattr(fn, "__qualname__", ""), parts[0][0], parts[-1][1])
-    if len(parts) == 2:
-        a, b = parts[0][0], parts[-1][1]
-        m = a + int(round(twin.balance.get(key, 0.5) * (b - a)))
-        parts = [(a, m), (m, b)]
-    mine, theirs = twin.split(parts)
-    twin.in_pass = True         # passes nested in fn run whole on each side
-    t0 = time.perf_counter()
-    try:
-        results = [fn(a, b) for a, b in mine]
-        payload = ("ok", results, [[w[a:b] for a, b in mine] for w in written], time.perf_counter() - t0)
-    except Exception as e:
-        if twin.leader:
-            raise
-        payload = ("error", _picklable(e), traceback.format_exc())
-    finally:
-        twin.in_pass = False
-    # The parent does not wait forever: a child that does not answer is
-    # left, and its ranges computed here.
-    wait = max(twin.wait[0], twin.wait[1] * (time.perf_counter() - t0)) if twin.leader else None
-    try:
-        other = twin.exchange(payload, wait)
-    except TwinLost as e:
-        twin.hung = isinstance(e, TwinSilent)
-        twin.end()              # the child exits here; the parent kills it
-        return parts, results + [fn(a, b) for a, b in theirs]
-    if payload[0] == "error":   # the parent raises it
-        twin.end()
-    if other[0] == "abandon":   # (child) the leader stopped the loop: unwind it as it did
-        twin.abandoned = other[1]
-        raise LoopAbandoned("the leader abandoned the loop")
-    if other[0] == "error":
-        twin.end()
-        raise other[1]
-    _, their_results, their_rows, their_seconds = other
-    for w, rows in zip(written, their_rows):
-        for (a, b), part in zip(theirs, rows):
-            w[a:b] = part
-    if len(parts) == 2:
-        seconds = (payload[3], their_seconds) if twin.leader else (their_seconds, payload[3])
-        twin.rebalance(key, parts, seconds)
-    return parts, (results + their_results if twin.leader else their_results + results)
-
-
-def _picklable(e):
-    try:
-        pickle.loads(pickle.dumps(e))
-        return e
-    except Exception:  # noqa: BLE001 -- not picklable: sent as a RuntimeError
-        out = RuntimeError(f"{type(e).__name__}: {e}")
-        for note in getattr(e, "__notes__", ()):    # where it happened (core/util/errors.py)
-            out.add_note(note)
-        return out
+        self._pipes, self._files, self._stop = (), ((), ()), None
 
 
 def _read_exactly(fd, n):

@@ -27,7 +27,7 @@ from concurrent.futures import ThreadPoolExecutor, wait
 
 import numpy as np
 
-from . import forked
+from . import forked, twin_pass
 
 _local = threading.local()
 MIN_PIXELS_PER_WORKER = 4096     # below this a pass runs on the calling thread
@@ -110,7 +110,7 @@ class Workers:
         parts = self.ranges(n)
         twin = forked.active()
         if twin is not None and not twin.in_pass and len(parts) > 1:
-            return forked.run_pass(twin, fn, parts, written)[1]
+            return twin_pass.run_pass(twin, fn, parts, written)[1]
         if self._pool is None or len(parts) == 1 or in_worker():
             return [fn(a, b) for a, b in parts]
         futures = [self._pool.submit(fn, a, b) for a, b in parts]
@@ -129,7 +129,7 @@ class Workers:
         parts = self.ranges(n)
         twin = forked.active()
         if twin is not None and not twin.in_pass and len(parts) > 1:
-            for (a, b), part in zip(*forked.run_pass(twin, fn, parts, written)):
+            for (a, b), part in zip(*twin_pass.run_pass(twin, fn, parts, written)):
                 if out is None:
                     out = _alike(part, n)
                 _write_rows(out, part, a, b)

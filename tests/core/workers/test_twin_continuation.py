@@ -5,6 +5,7 @@ abandoned (the viewport's frame, for an edit) when both processes' states
 agree. Whatever happens, the images are those of one process."""
 
 import os
+import time
 
 import numpy as np
 import pytest
@@ -172,5 +173,60 @@ def test05_a_twin_that_finished_the_loop_the_leader_abandoned_is_ended():
         assert w._parked is None and gone(first[0])
         after = _loop(w, box)
         assert after[0] not in (first[0], os.getpid())
+    finally:
+        w.close()
+
+
+def _slow_loop(w, box, where):
+    """The twin's side is slow (2 s) where the leader abandons: in its half
+    of a pass, or in serial work between two passes. Both poll the stop word
+    (forked.told_to_stop) as the interruptible ray queries do."""
+    def linger():
+        for _ in range(200):
+            if forked.told_to_stop():
+                raise forked.LoopAbandoned()
+            time.sleep(0.01)
+
+    def fn(a, b):
+        if forked.in_twin() and where == "pass":
+            linger()
+        if not forked.in_twin() and where == "pass":
+            raise forked.LoopAbandoned()
+        return np.arange(a, b)
+
+    keep = Continuation(lambda: ("toy", box["loops"]), (w, box), _resume_slow, (where,),
+                        fingerprint=_fingerprint)
+    with w.twin(N, keep) as lead:
+        for i in range(PASSES):
+            np.concatenate(w.map(fn if i == 1 else (lambda a, b: np.arange(a, b)), N))
+            if i == 1 and where == "serial":
+                if lead:
+                    raise forked.LoopAbandoned()
+                linger()
+        box["loops"] += 1
+        keep.complete = True
+
+
+def _resume_slow(w, box, patch, where):
+    try:
+        _slow_loop(w, box, where)
+    except forked.LoopAbandoned:
+        pass
+    return w, box
+
+
+@pytest.mark.parametrize("where", ["pass", "serial"])
+def test06_the_twin_stops_at_its_next_poll_not_at_the_end_of_its_work(where):
+    w = Workers(2)
+    box = {"loops": 0, "parent": os.getpid()}
+    try:
+        _loop(w, box)
+        kept = _parked(w)
+        t = time.perf_counter()
+        with pytest.raises(forked.LoopAbandoned):
+            _slow_loop(w, box, where)
+        assert time.perf_counter() - t < 1.0        # not the twin's 2 s
+        assert _parked(w) == kept
+        assert set(_loop(w, box)) == {kept}         # and it goes on in step
     finally:
         w.close()
