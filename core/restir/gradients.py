@@ -96,21 +96,31 @@ def redrawn_values(ctx, history, seed, pixel_filter, how, stream_index, motion=N
     view.scene = then
     p_then = gather(history.p, pixels)
     aim = moved_points(history, pixels, p_then, motion)
-    gb = trace_rows(view, seed, history.frame, pixel_filter, True, 0, 0, history.index, pixels=pixels, aim=aim)
-    res, _, _ = initial_samples(view, gb, seed, history.frame, 0, how, stream_index=stream_index)
+
+    def part(a, b):         # the strata a..b, on the context's workers
+        sub = None
+        if aim is not None:
+            inside = (aim[0] >= a) & (aim[0] < b)
+            sub = (aim[0][inside] - a, aim[1][inside])
+        gb = trace_rows(view, seed, history.frame, pixel_filter, True, 0, 0, history.index, pixels=pixels[a:b],
+                        aim=sub)
+        res, _, _ = initial_samples(view, gb, seed, history.frame, 0, how, stream_index=stream_index)
+        p_now = np.zeros((b - a, 3), np.float32)
+        p_now[gb.index] = gb.surf.p
+        return gb.valid, gb.object_id, p_now, res.w_sum.astype(np.float32)
+
+    seen, object_id, p_now, new = ctx.workers.map_into(part, len(pixels))
     old = gather(history.sample_value, pixels)
     # Only where the camera ray found the surface it found last frame (where
     # it moved to, on a moved object): a pixel that now sees another surface
     # (a moving object's silhouette) tells nothing of the light.
     if aim is not None:
         p_then[aim[0]] = aim[1]
-    p_now = np.zeros_like(p_then)
-    p_now[gb.index] = gb.surf.p
     apart = np.linalg.norm(p_now - p_then, axis=1)
-    same = (gb.object_id == gather(history.object_id, pixels)) & \
+    same = (object_id == gather(history.object_id, pixels)) & \
         (apart <= SAME_POINT * np.maximum(gather(history.depth, pixels), 1e-6))
-    valid = gb.valid & gather(history.valid, pixels) & same
-    return pixels, old, res.w_sum.astype(np.float32), valid
+    valid = seen & gather(history.valid, pixels) & same
+    return pixels, old, new, valid
 
 
 def moved_points(history, pixels, p_then, motion):

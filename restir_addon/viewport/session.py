@@ -88,9 +88,9 @@ class ViewportSession(Refinement, SceneSync):
     # (bench/bench_viewport.py --no-twin: 2.4-2.6 frames/s against 3.9-4.0).
     # Between frames the twin is parked and sent the new view, or the scene's
     # edits (core/render.render_restir's Continuation); a frame abandoned for
-    # an edit ends it, and the next forks again: ~10 ms for the fork, and
-    # about 0.1 s of copy-on-write page faults in the restarted frame
-    # (docs/performance.md, "The viewport"). Above
+    # an edit is unwound by both processes and the twin kept (a fork anew
+    # would cost ~10 ms, and about 0.1 s of copy-on-write page faults in the
+    # restarted frame: docs/performance.md, "The viewport"). Above
     # twin_max_pixels frames stay on threads, whose calls are long enough to
     # overlap: at 524x347 the twin took 0.72 s a frame against 0.76 s
     # headless, and 1.7 s against 1.26 s in the real window (one run each),

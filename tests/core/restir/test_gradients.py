@@ -2,6 +2,8 @@
 again in the new scene tell where the light changed, and only there do the
 reservoirs and running means forget."""
 
+import dataclasses
+
 import numpy as np
 
 from restir_gi.core import RenderContext
@@ -12,6 +14,7 @@ from restir_gi.core.restir.gradients import (RADIUS, STRATUM, history_frames, ke
                                              redrawn_values, stratum_pixels, temporal_gradient)
 from restir_gi.core.restir.initial import InitialSampling
 from restir_gi.core.restir.temporal import ObjectMotion
+from restir_gi.core.workers.parallel import Workers
 from support.moving_card import SIZE, STANDING, scene_with
 
 SETTINGS = ReSTIRSettings(seed=3, max_bounces=3)
@@ -109,6 +112,17 @@ def test_a_moved_objects_samples_are_drawn_again_where_its_points_went():
         ctx.close()
     card = h.valid[pixels] & (h.object_id[pixels] == 1)
     assert card.sum() >= 20
+    # The strata are a pass over the context's workers: in ranges of 97
+    # (the card's re-aimed rows among them) they come out the same.
+    ctx = RenderContext.build(scene, threads=1)
+    try:
+        ctx = dataclasses.replace(ctx, workers=Workers(1, max_range=97))
+        assert len(ctx.workers.ranges(len(pixels))) >= 4
+        again = redraw(ctx, restir, motion)
+    finally:
+        ctx.close()
+    for a, b in zip((pixels, old, new, valid), again):
+        np.testing.assert_array_equal(a, b)
     rows, points = moved_points(h, pixels, h.p[pixels], motion)
     np.testing.assert_array_equal(rows, np.flatnonzero(card))
     np.testing.assert_allclose(points - h.p[pixels][rows], [[0.001, 0.0, 0.0]] * len(rows), atol=1e-6)
