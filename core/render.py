@@ -57,8 +57,10 @@ def samples_per_pass(pixels, samples):
     return max(1, min(samples, CHUNK_PIXELS // max(pixels, 1)))
 
 
-def render_frame(ctx, settings, frame=0, on_sample=None, should_stop=None):
-    """Path-trace ``settings.samples`` passes of the whole image into a Film.
+def render_frame(ctx, settings, frame=0, on_sample=None, should_stop=None, first_sample=0):
+    """Path-trace ``settings.samples`` passes of the whole image into a Film:
+    samples first_sample .. first_sample + samples - 1 of the frame's
+    sequence (the viewport asks for one more at a time).
 
     on_sample(film, seconds) is called after every pass; should_stop() is polled
     between batches of CHUNK_PIXELS pixels, so a cancel is noticed within one
@@ -66,6 +68,8 @@ def render_frame(ctx, settings, frame=0, on_sample=None, should_stop=None):
     """
     scene = ctx.scene
     if getattr(scene, "shutter_motion", None) is not None:     # objects' motion blur (object_motion.py)
+        if first_sample:
+            raise ValueError("motion blur renders its samples from the first")
         return render_blurred(render_frame, ctx, settings, frame, on_sample, should_stop)
     w, h = scene.width, scene.height
     film = Film(w, h)
@@ -75,8 +79,9 @@ def render_frame(ctx, settings, frame=0, on_sample=None, should_stop=None):
     # A second process on Linux (core/workers/forked.py), kept for the next frame of
     # an animation if the scene changed only its camera, or objects moved
     # (core/scene_patch.py).
-    keep = Continuation(lambda: _continuation_token(ctx), (ctx,), _resume_path, (scene.camera, settings, frame),
-                        patch=lambda state, token: _patch(state[0], ctx, token))
+    keep = Continuation(lambda: _continuation_token(ctx), (ctx,), _resume_path,
+                        (scene.camera, settings, frame, first_sample),
+                        patch=lambda state, token: _patch(state[0], ctx, token), fingerprint=_path_fingerprint)
     batch = samples_per_pass(n, settings.samples)
     with ctx.workers.twin(n * batch, keep) as lead:
         done = 0
@@ -96,7 +101,7 @@ def render_frame(ctx, settings, frame=0, on_sample=None, should_stop=None):
                 if a > 0 and lead and should_stop is not None and should_stop():
                     return film
                 b = min(a + CHUNK_PIXELS, rows_total)
-                res = path_trace_pixels(ctx, settings.seed, frame, done, settings.max_bounces,
+                res = path_trace_pixels(ctx, settings.seed, frame, first_sample + done, settings.max_bounces,
                                         pixel_filter, a, b, samples=k)
                 color[a:b], depth[a:b], normal[a:b], albedo[a:b] = res.color, res.depth, res.normal, res.albedo
                 alpha[a:b] = res.alpha
@@ -229,14 +234,23 @@ def _with_camera(ctx, camera):
     return dataclasses.replace(ctx, scene=scene)
 
 
-def _resume_path(ctx, patch, camera, settings, frame):
+def _resume_path(ctx, patch, camera, settings, frame, first_sample):
     """(in the twin) The next render_frame from the twin's copies (brought
     to the leader's scene by ``patch`` if not None)."""
     if patch is not None:
         ctx = scene_patch.apply(ctx, patch)
     ctx = _with_camera(ctx, camera)
-    render_frame(ctx, settings, frame)
+    try:
+        render_frame(ctx, settings, frame, first_sample=first_sample)
+    except LoopAbandoned:
+        pass        # the leader stopped the loop (forked.Twin.abandon)
     return (ctx,)
+
+
+def _path_fingerprint(ctx):
+    """Path tracing keeps nothing between samples: after an abandoned loop
+    the twin's state is the leader's."""
+    return 0
 
 
 def _resume_restir(ctx, restir, patch, camera, settings, frame, frames, fresh):

@@ -42,13 +42,12 @@ from dataclasses import replace
 
 import numpy as np
 
-from ...core.camera.projection import PixelFilter
 from ...core.integrators.bounces import Bounces
 from ...core.geometry.dynamic_accel import TraceInterrupted
 from ...core.util.errors import describe
 from ...core.camera.film import to_rgba
 from ...core.integrators.media import media_of
-from ...core.render import CHUNK_PIXELS, path_trace_pixels, render_restir
+from ...core.render import RenderSettings, render_frame, render_restir
 from ...core.restir import ReSTIRGI, ReSTIRSettings
 from ...core.restir.accumulation import STILL
 from .. import defaults
@@ -324,17 +323,11 @@ class ViewportSession(Refinement, SceneSync):
         return self._ctx is not None and media_of(self._scene, self._ctx.eps) is not None
 
     def _path_sample(self, sample):
-        """One path-traced sample per pixel, in batches (an abandon is noticed
-        between them through the accel)."""
-        scene = self._scene
-        n = scene.width * scene.height
-        color = np.zeros((n, 3), np.float32)
-        pixel_filter = PixelFilter(scene.filter_width)
-        for a in range(0, n, CHUNK_PIXELS):
-            stop = min(a + CHUNK_PIXELS, n)
-            color[a:stop] = path_trace_pixels(self._ctx, self.seed, 0, sample, self.max_bounces,
-                                              pixel_filter, a, stop).color
-        return color
+        """One path-traced sample per pixel (an abandon is noticed between
+        ray batches through the accel), in the twin process as ReSTIR
+        frames are (core/render.render_frame's Continuation)."""
+        settings = RenderSettings(mode=PATH, samples=1, max_bounces=self.max_bounces, seed=self.seed)
+        return render_frame(self._ctx, settings, 0, first_sample=sample).mean().reshape(-1, 3)
 
     # ------------------------------------------------------------------ thread
 

@@ -1,4 +1,4 @@
-"""The viewport's ReSTIR frames in two processes (core/workers/forked.py):
+"""The viewport's frames (ReSTIR, and path-traced samples) in two processes (core/workers/forked.py):
 the twin is forked once and kept between frames while the view turns and an
 object moves, and across a frame abandoned for an edit; the images are
 bitwise those of two threads, and those of a twin forked anew after the
@@ -41,11 +41,11 @@ def _abandon(vp, session, nth):
     return polls[0]
 
 
-def _frames(vp, recorder, twin, monkeypatch, abandon_at=None):
+def _frames(vp, recorder, twin, monkeypatch, abandon_at=None, mode="RESTIR_BIASED"):
     import bpy
     monkeypatch.setattr(vp.ViewportSession, "twin_process", twin)
     build_scene()
-    session = new_session(vp, mode="RESTIR_BIASED", samples=0, threads=2)
+    session = new_session(vp, mode=mode, samples=0, threads=2)
     session.resize(*SIZE)
     frames = []
 
@@ -68,7 +68,8 @@ def _frames(vp, recorder, twin, monkeypatch, abandon_at=None):
     return frames
 
 
-def test01_frames_of_the_twin_are_those_of_threads_and_it_is_kept(vp, recorder, monkeypatch):
+@pytest.mark.parametrize("mode", ["RESTIR_BIASED", "PATH"])
+def test01_frames_of_the_twin_are_those_of_threads_and_it_is_kept(vp, recorder, monkeypatch, mode):
     from restir_gi.core.workers import forked
     if not forked.AVAILABLE:
         pytest.skip("no fork on this platform")
@@ -86,9 +87,9 @@ def test01_frames_of_the_twin_are_those_of_threads_and_it_is_kept(vp, recorder, 
 
     monkeypatch.setattr(forked.Twin, "start", staticmethod(counted_start))
     monkeypatch.setattr(forked.Twin, "resume", counted_resume)
-    threads = _frames(vp, recorder, False, monkeypatch)
+    threads = _frames(vp, recorder, False, monkeypatch, mode=mode)
     assert calls == {"start": 0, "resume": 0}
-    twin = _frames(vp, recorder, True, monkeypatch)
+    twin = _frames(vp, recorder, True, monkeypatch, mode=mode)
     # One fork for the first frame; the six after it resume the parked twin
     # (the object's move is sent as a ScenePatch) or fork again at most once.
     assert calls["start"] <= 2 and calls["resume"] >= 5, calls
@@ -109,8 +110,9 @@ def _count_forks(monkeypatch, forked):
     return calls
 
 
-@pytest.mark.parametrize("nth", [1, 6, 30])
-def test02_a_frame_abandoned_for_an_edit_keeps_the_twin(vp, recorder, monkeypatch, nth):
+@pytest.mark.parametrize("mode, nth", [("RESTIR_BIASED", 1), ("RESTIR_BIASED", 6), ("RESTIR_BIASED", 30),
+                                       ("PATH", 3)])
+def test02_a_frame_abandoned_for_an_edit_keeps_the_twin(vp, recorder, monkeypatch, mode, nth):
     """The leader abandons a frame at its nth interrupt poll (the first
     pass, the middle of the frame, shading): the twin unwinds it too and is
     kept, and the frames that follow are bitwise those of a twin forked
@@ -119,7 +121,7 @@ def test02_a_frame_abandoned_for_an_edit_keeps_the_twin(vp, recorder, monkeypatc
     if not forked.AVAILABLE:
         pytest.skip("no fork on this platform")
     calls = _count_forks(monkeypatch, forked)
-    kept = _frames(vp, recorder, True, monkeypatch, abandon_at=nth)
+    kept = _frames(vp, recorder, True, monkeypatch, abandon_at=nth, mode=mode)
     assert calls["start"] == 1
 
     def ended(self, fingerprint, state):
@@ -127,7 +129,7 @@ def test02_a_frame_abandoned_for_an_edit_keeps_the_twin(vp, recorder, monkeypatc
         return False
     monkeypatch.setattr(forked.Twin, "abandon", ended)
     calls["start"] = 0
-    anew = _frames(vp, recorder, True, monkeypatch, abandon_at=nth)
+    anew = _frames(vp, recorder, True, monkeypatch, abandon_at=nth, mode=mode)
     assert calls["start"] == 2
     assert len(kept) == len(anew) == 7
     for i, (a, b) in enumerate(zip(kept, anew)):
