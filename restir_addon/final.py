@@ -213,16 +213,19 @@ def jumped(prev, cur, extent):
 
 
 def _chunk_warmup(engine, depsgraph, stream, width, height, view=None):
-    """The first frame N of an animation render that starts after the scene's
-    first frame: render frames max(frame_start, N - chunk_warmup_frames) ..
-    N - 1 along the animation (the scene evaluated at each, so reprojection
+    """The first frame N of an animation render that starts after the
+    animation's first frame (state.animation_start: frame_start, or where it
+    was before the command line's -s moved it): render frames
+    max(that, N - chunk_warmup_frames) .. N - 1 along the animation (the
+    scene evaluated at each, so reprojection
     follows the real motion) and write nothing, so frame N continues from the
-    history a render started at that frame would have. Reaching back to
-    frame_start, the frames are those of the continuous render, random numbers
-    included. Returns False if cancelled."""
+    history a render started at that frame would have. Reaching back to the
+    animation's first frame, the frames are those of the continuous render,
+    random numbers included. Returns False if cancelled."""
     scene = depsgraph.scene
     frame = scene.frame_current
-    first = max(scene.frame_start, frame - scene.restir_gi.chunk_warmup_frames)
+    start = state.animation_start(scene)
+    first = max(start, frame - scene.restir_gi.chunk_warmup_frames)
     if first >= frame:
         return True
     memory.check_image(width, height, held=stream.restir.nbytes)
@@ -249,7 +252,7 @@ def _chunk_warmup(engine, depsgraph, stream, width, height, view=None):
             fresh = stream.last_frame is None
             frames = scene.restir_gi.samples
             if fresh:
-                frames = scene.restir_gi.warmup_frames if f == scene.frame_start or \
+                frames = scene.restir_gi.warmup_frames if f == start or \
                     CHUNK_FRESH_FRAMES is None else CHUNK_FRESH_FRAMES
             engine.update_stats("", f"Frame {frame} | chunk warm-up: frame {f} "
                                     f"({f - first + 1}/{frame - first}) "

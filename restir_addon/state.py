@@ -6,6 +6,9 @@ data is on, so each (scene, view layer) stream lives here, outside the engine
 ReSTIR GI's reservoirs and the exported scene with its Embree scenes
 (frame_scene.py). Each stream remembers the last frame it rendered and its
 camera, so a jump in time (not the next frame) or a camera cut starts over.
+Each scene's frame_start as the file was loaded is kept too: the first frame
+of its animation when the command line's -s moved frame_start
+(``animation_start``).
 
 The exported scene is freed when a render job ends (completed or cancelled)
 unless Persistent Data is on, as Blender frees its own; everything is dropped
@@ -18,6 +21,28 @@ from ..core.restir import ReSTIRGI
 from .sync.frame_scene import FrameScene
 
 _streams = {}
+_loaded_starts = {}     # scene name -> frame_start as the file was loaded
+
+
+def animation_start(scene):
+    """The first frame of the scene's animation: its frame_start, or in a
+    background render the frame_start it had when the file was loaded, if
+    that is earlier. A farm that renders a chunk with ``blender -b
+    file.blend -s A -e B -a`` makes A the scene's frame_start after the file
+    is loaded; the chunk's warm-up (final._chunk_warmup) still reaches back
+    before A, as it does for ``-f A..B``. (In Blender's window frame_start is
+    what the user set.)"""
+    loaded = _loaded_starts.get(scene.name_full) if bpy.app.background else None
+    return scene.frame_start if loaded is None else min(scene.frame_start, loaded)
+
+
+@bpy.app.handlers.persistent
+def remember_frame_ranges(*_args):
+    """(load_post) Each scene's frame_start as the file was loaded, before the
+    command line's -s changes it."""
+    _loaded_starts.clear()
+    for scene in bpy.data.scenes:
+        _loaded_starts[scene.name_full] = int(scene.frame_start)
 
 
 class Stream:
@@ -47,10 +72,11 @@ def stream_for(scene_name, layer_name, view=None):
 
 @bpy.app.handlers.persistent
 def clear(*_args):
-    """Free every stream's buffers."""
+    """Free every stream's buffers and forget the frame ranges loaded."""
     for stream in _streams.values():
         stream.free()
     _streams.clear()
+    _loaded_starts.clear()
 
 
 @bpy.app.handlers.persistent
@@ -69,7 +95,8 @@ def stream_count():
     return len(_streams)
 
 
-_HANDLERS = (("load_pre", clear), ("render_complete", job_ended), ("render_cancel", job_ended))
+_HANDLERS = (("load_pre", clear), ("load_post", remember_frame_ranges), ("render_complete", job_ended),
+             ("render_cancel", job_ended))
 
 
 def register():

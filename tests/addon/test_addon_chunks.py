@@ -68,6 +68,31 @@ def test_chunk_continues_the_continuous_render(addon, reports, tmp_path, edits_h
     assert reports.of("ERROR") == []
 
 
+def test_a_chunk_whose_start_the_command_line_moved_still_warms_up(addon, reports, tmp_path,
+                                                                    edits_handler):  # noqa: F811
+    """``blender -b file.blend -s 3 -e 4 -a`` makes 3 the scene's frame_start
+    after the file is loaded (load_post saw 1): the chunk still reaches back
+    to frame 1 and renders frames 3 and 4 as the continuous render does."""
+    scene = build_scene(False, mode="RESTIR_BIASED")
+    scene.restir_gi.samples = 1
+    scene.restir_gi.chunk_warmup_frames = 16
+    addon.restir_addon.state.clear()
+    continuous = _render(scene, tmp_path, "all", 1, 4)
+    scene.frame_start = 1
+    addon.restir_addon.state.clear()
+    addon.restir_addon.state.remember_frame_ranges()       # the file as loaded
+    chunk = _render(scene, tmp_path, "dash_s", 3, 4, scene_start=3)     # then -s 3
+    assert sorted(chunk) == [3, 4]
+    for f in (3, 4):
+        assert _same(chunk[f], continuous[f]), (f, np.abs(chunk[f] - continuous[f]).mean())
+    addon.restir_addon.state.clear()
+    scene.frame_start = 3
+    addon.restir_addon.state.remember_frame_ranges()       # a file loaded with its start at 3: cold
+    cold = _render(scene, tmp_path, "cold", 3, 4, scene_start=3)
+    assert not _same(cold[3], continuous[3])
+    assert reports.of("ERROR") == []
+
+
 def test_chunk_warmup_starts_where_a_render_would(addon, reports, tmp_path, edits_handler):  # noqa: F811
     """With one frame of warm-up, a chunk 3..4 renders as an animation that
     started at frame 2 (its first frame a still warm-up at frame 2)."""
