@@ -125,6 +125,17 @@ def test_headless_animation_render(session):
         assert _image(os.path.join(OUT, name))[..., :3].mean() > 0.02
 
 
+def test_headless_chunk_render_warms_up(session):
+    """``blender -b FILE -E RESTIR_GI -s 3 -e 3 -a`` (a farm's chunk: -s
+    moves the scene's frame_start after the file is loaded) renders the
+    chunk warm-up's frames 1 and 2 and writes frame 3 only."""
+    _, _, lines = session
+    rc, frames, warmed = lines["chunk"][0].split()
+    assert rc == "0", open(os.path.join(OUT, "chunk.log")).read()[-3000:]
+    assert frames == "chunk_0003.png" and warmed == "1,2", lines["chunk"]
+    assert _image(os.path.join(OUT, frames))[..., :3].mean() > 0.02
+
+
 def test_material_preview_is_rendered_by_the_engine(session):
     """The material's preview icon in the Properties editor's slot list
     holds an image (engines without bl_use_preview leave it empty)."""

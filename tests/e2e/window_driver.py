@@ -256,6 +256,15 @@ def batch():
         fh.write(proc.stdout + proc.stderr)
     frames = sorted(f for f in os.listdir(OUT) if f.startswith("anim_"))
     say("batch", proc.returncode, f"{time.time() - t:.2f}", ",".join(frames))
+    # A farm's chunk: -s moves frame_start after the file is loaded; the
+    # chunk still warms up from the file's first frame (state.animation_start).
+    proc = subprocess.run([bpy.app.binary_path, "-b", blend, "-E", ENGINE, "-o", os.path.join(OUT, "chunk_####"),
+                           "-F", "PNG", "-s", "3", "-e", "3", "-a"], capture_output=True, text=True, timeout=240)
+    with open(os.path.join(OUT, "chunk.log"), "w") as fh:
+        fh.write(proc.stdout + proc.stderr)
+    frames = sorted(f for f in os.listdir(OUT) if f.startswith("chunk_"))
+    warmed = [f for f in (1, 2) if f"chunk warm-up: frame {f} " in proc.stdout + proc.stderr]
+    say("chunk", proc.returncode, ",".join(frames), ",".join(map(str, warmed)) or "-")
     say("quitting", "")
     bpy.ops.wm.quit_blender()
 
