@@ -237,6 +237,10 @@ class Scene:
     # Film > Transparent: the world seen directly is left out and the image
     # gets an alpha of the pixels' coverage by geometry.
     film_transparent: bool = False
+    # Shadow rays of smooth-shaded triangles start from the smooth surface
+    # near the terminator (core/integrators/terminator.py): Cycles' Geometry
+    # Offset, its default for every object (0: off).
+    shadow_terminator: float = 0.1
     # (lo, hi) of the vertices, from a builder that keeps them per object
     # (the add-on); None: computed on first use and kept while ``vertices``
     # is the same array, as a frame asks several times (ray offsets, the

@@ -8,7 +8,7 @@ import numpy as np
 from ..bsdfs import bsdf
 from ..materials import shading as materials
 from ..sampling import samplers
-from . import transparency
+from . import terminator, transparency
 from ..geometry.accel import Accel, offset_origins
 from ..lights.light_set import INF_DIST, LightSet
 from ..workers.parallel import SERIAL, Workers
@@ -114,9 +114,17 @@ def direct_light(ctx, surf, frame, seeds, bounce, mis=True, strategy_pdf=None, u
     if hidden is not None and ls.index is not None:
         f = _without_hidden_lobes(frame, wi_local, f, np.take(hidden, ls.index, axis=0))
     # The light must lie on the side of the surface the lobe sends it to:
-    # geometric and shading normals agree (only glass lobes refract).
+    # geometric and shading normals agree (only glass lobes refract) ...
     cos = np.abs(wi_local[:, 2])
-    above = (dot(ls.wi, surf.ng) > 0) == (wi_local[:, 2] > 0)
+    ngl = dot(ls.wi, surf.ng)
+    above = (ngl > 0) == (wi_local[:, 2] > 0)
+    cutoff = float(getattr(ctx.scene, "shadow_terminator", 0.0))
+    lifted = cutoff > 0 and surf.bary is not None
+    if lifted:
+        # ... or, on smooth-shaded triangles, a light the shading normal
+        # faces below the triangle's plane: the shadow ray from the smooth
+        # surface decides (terminator.py; the triangle itself may block it).
+        above |= (ngl <= 0) & (wi_local[:, 2] > 0)
     if mis and not delta:
         w = np.where(ls.delta, 1.0, power_heuristic(ls.pdf if count is None else ls.pdf * count, pdf_b))
     else:
@@ -138,14 +146,41 @@ def direct_light(ctx, surf, frame, seeds, bounce, mis=True, strategy_pdf=None, u
     else:
         lit = rows[:0]
     if len(rows):
-        blocked = ctx.accel.occluded(*shadow_rays(ctx, gather(surf.p, rows), gather(surf.ng, rows),
-                                                  gather(ls.wi, rows), ls.dist[rows]))
+        blocked = _occluded(ctx, surf, ls, rows, cutoff if lifted else 0.0)
         lit = np.concatenate([lit, rows[~blocked]]) if len(lit) else rows[~blocked]
     if media is not None and len(lit):
         tr = media.along(*shadow_rays(ctx, gather(surf.p, lit), gather(surf.ng, lit), gather(ls.wi, lit),
                                       ls.dist[lit])).transmittance()
         return scatter(out, lit, gather(contrib, lit) * tr)
     return scatter(out, lit, gather(contrib, lit))
+
+
+def _occluded(ctx, surf, ls, rows, cutoff):
+    """(K,) bool: the light samples ``rows`` are blocked, seen from the hits
+    or, near the terminator of smooth-shaded triangles (cutoff > 0:
+    terminator.py), from the smooth surface. A light below a triangle's
+    plane is tested from the lifted point, its own triangle included; where
+    nothing lifts the point above the plane (a flat triangle whose normal
+    map faces the light) it stays blocked, as the triangle blocks it there."""
+    p, ng, wi = gather(surf.p, rows), gather(surf.ng, rows), gather(ls.wi, rows)
+    dist = ls.dist[rows]
+    under = dot(ng, wi) <= 0
+    amount = terminator.amounts(gather(surf.ns, rows), ng, wi, cutoff) if cutoff > 0 else None
+    some = np.zeros(0, np.int64) if amount is None else np.nonzero(amount > 0)[0]
+    if len(some) == 0:
+        if not under.any():
+            return ctx.accel.occluded(*shadow_rays(ctx, p, ng, wi, dist))
+        lift = np.zeros_like(p)
+    else:
+        lift = np.zeros_like(p)
+        lift[some] = scale(terminator.smooth_lift(ctx.scene, gather(surf.prim, rows[some]),
+                                                  gather(surf.bary, rows[some]), ng[some]), amount[some])
+    blocked = under & ~(dot(lift, ng) > ctx.eps)
+    trace = np.nonzero(~blocked)[0]
+    if len(trace):
+        blocked[trace] = ctx.accel.occluded(*shadow_rays(ctx, p[trace], ng[trace], wi[trace], dist[trace],
+                                                         lift=lift[trace], up=under[trace]))
+    return blocked
 
 
 def _without_hidden_lobes(frame, wi_local, f, hidden):
@@ -160,15 +195,21 @@ def _without_hidden_lobes(frame, wi_local, f, hidden):
     return f
 
 
-def shadow_rays(ctx, p, ng, wi, dist):
+def shadow_rays(ctx, p, ng, wi, dist, lift=None, up=None):
     """Shadow rays from surface points toward light points at ``dist`` along wi.
 
     The origin moves off the surface, so the direction is re-aimed from the moved
     origin at the light point: at grazing angles the unmoved direction would
-    cross the light's plane early and hit the emitter itself. Returns
-    (origins, directions, tmax) for ``Accel.occluded``.
+    cross the light's plane early and hit the emitter itself. lift: (N, 3)
+    added to the origins first (terminator.py); up: (N,) bool, rows whose
+    origin moves off to the side of ng even where wi points below it (their
+    own triangle may block them). Returns (origins, directions, tmax) for
+    ``Accel.occluded``.
     """
-    o = offset_origins(p, ng, wi, ctx.eps)
+    start = p if lift is None else (p + lift).astype(np.float32)
+    o = offset_origins(start, ng, wi, ctx.eps)
+    if up is not None and up.any():
+        o[up] = start[up] + np.float32(ctx.eps) * ng[up]
     finite = dist < INF_DIST
     if not finite.any():    # lights at infinity only (suns, the world): along wi, unbounded
         return o, wi.astype(np.float32), np.full(len(o), INF_DIST, np.float32)
