@@ -103,6 +103,10 @@ def _voronoi(feature, metric, output, dimensions="3D"):
     def make(tree):
         v = tree.nodes.new("ShaderNodeTexVoronoi")
         v.feature, v.distance, v.voronoi_dimensions = feature, metric, dimensions
+        if dimensions in ("1D", "4D"):      # W: the object's x (1D: along x; 4D: (x, y, z, x))
+            sep = tree.nodes.new("ShaderNodeSeparateXYZ")
+            tree.links.new(tree.nodes.new("ShaderNodeTexCoord").outputs["Object"], sep.inputs[0])
+            tree.links.new(sep.outputs["X"], v.inputs["W"])
         for name, value in (("Scale", 2.3), ("Randomness", 0.85), ("Exponent", 1.6), ("Smoothness", 0.7)):
             if name in v.inputs:
                 v.inputs[name].default_value = value
@@ -132,6 +136,12 @@ PATTERNS = {"brick": _brick, "noise_3d": _noise("3D", 0.0), "noise_4d": _noise("
             "voronoi_2d_smooth_f1": _voronoi("SMOOTH_F1", "EUCLIDEAN", "Color", "2D"),
             "voronoi_2d_distance_to_edge": _voronoi("DISTANCE_TO_EDGE", "EUCLIDEAN", "Distance", "2D"),
             "voronoi_2d_n_sphere_radius": _voronoi("N_SPHERE_RADIUS", "EUCLIDEAN", "Radius", "2D"),
+            "voronoi_1d_f1": _voronoi("F1", "EUCLIDEAN", "Color", "1D"),
+            "voronoi_1d_smooth_f1_distance": _voronoi("SMOOTH_F1", "EUCLIDEAN", "Distance", "1D"),
+            "voronoi_1d_distance_to_edge": _voronoi("DISTANCE_TO_EDGE", "EUCLIDEAN", "Distance", "1D"),
+            "voronoi_4d_f1": _voronoi("F1", "EUCLIDEAN", "Color", "4D"),
+            "voronoi_4d_f2_position": _voronoi("F2", "MANHATTAN", "Position", "4D"),
+            "voronoi_4d_n_sphere_radius": _voronoi("N_SPHERE_RADIUS", "EUCLIDEAN", "Radius", "4D"),
             **{f"noise_{k.lower()}": _noise("3D", 0.0, k) for k in ("MULTIFRACTAL", "HETERO_TERRAIN",
                                                                   "HYBRID_MULTIFRACTAL", "RIDGED_MULTIFRACTAL")}, "wave_bands_diagonal_saw": _wave("BANDS", "DIAGONAL", "SAW", 4.0),
             "wave_bands_y_sine": _wave("BANDS", "Y", "SIN", 0.0),

@@ -1,4 +1,4 @@
-"""Voronoi Texture (2D and 3D: F1, F2 and Smooth F1 by Euclidean, Manhattan,
+"""Voronoi Texture (1D to 4D: F1, F2 and Smooth F1 by Euclidean, Manhattan,
 Chebychev and Minkowski distances; Distance to Edge; N-Sphere Radius) as
 Cycles computes it, so cells line up with Cycles' renders of the same file.
 
@@ -7,8 +7,9 @@ and the cell colour from the PCG hashes of the integer cell) over the 3^D
 cells around the point; Smooth F1 blends the 5^D around it by a smooth
 minimum. Distance to Edge measures to the nearest plane halfway between the
 nearest point and another; N-Sphere Radius is half the distance from the
-nearest point to its own nearest. 1D and 4D and detail warn and use 3D. All
-on float32 arrays, the whole batch at once.
+nearest point to its own nearest. 1D (along W) and 4D (the vector and W)
+as Cycles; detail warns and is left out (one octave). All on float32
+arrays, the whole batch at once.
 """
 
 from itertools import product
@@ -16,6 +17,7 @@ from itertools import product
 import numpy as np
 
 from .evaluate import f32, node, varying
+from .nodes_noise import hash_uint, hash_uint2
 
 _PCG_MUL, _PCG_ADD = np.int32(1664525), np.int32(1013904223)
 
@@ -53,14 +55,49 @@ def cell_random2(cells):
     return _to_unit(v)
 
 
+def cell_random4(cells):
+    """Cycles' hash_int4_to_float4 of integer cells (N, 4): the PCG 4D hash."""
+    v = np.ascontiguousarray(cells, np.int32).copy()
+    with np.errstate(over="ignore"):
+        v = v * _PCG_MUL + _PCG_ADD
+        for _ in range(2):
+            v[:, 0] += v[:, 1] * v[:, 3]
+            v[:, 1] += v[:, 2] * v[:, 0]
+            v[:, 2] += v[:, 0] * v[:, 1]
+            v[:, 3] += v[:, 1] * v[:, 2]
+            if _ == 0:
+                v ^= v >> np.int32(16)
+    return _to_unit(v)
+
+
+_INV_U32 = np.float32(1.0 / 0xFFFFFFFF)
+
+
+def _cell_random1(cells, salt=None):
+    """Cycles' hash_float_to_float of 1D cells (N, 1) (Jenkins' lookup3 of the
+    float's bits), or with ``salt`` hash_float2_to_float(cell, salt)."""
+    bits = cells[:, 0].astype(np.float32).view(np.uint32)
+    h = hash_uint(bits) if salt is None else hash_uint2(bits, np.full(len(bits), np.float32(salt)).view(np.uint32))
+    return (h.astype(np.float32) * _INV_U32).astype(np.float32)
+
+
 def _jitter(cells):
     """Each cell's point, in the cell's own [0, 1]^D."""
-    return cell_random2(cells) if cells.shape[1] == 2 else cell_random(cells)
+    dims = cells.shape[1]
+    if dims == 1:
+        return _cell_random1(cells)[:, None]
+    return {2: cell_random2, 4: cell_random4}.get(dims, cell_random)(cells)
 
 
 def _colour(cells):
-    """Each cell's colour (N, 3): 2D cells hash as (x, y, 0)."""
-    if cells.shape[1] == 2:
+    """Each cell's colour (N, 3): 2D cells hash as (x, y, 0), 4D cells by
+    the first three of their hash, 1D cells by three salts of theirs."""
+    dims = cells.shape[1]
+    if dims == 1:
+        return np.stack([_cell_random1(cells), _cell_random1(cells, 1.0), _cell_random1(cells, 2.0)], axis=1)
+    if dims == 4:
+        return cell_random4(cells)[:, :3]
+    if dims == 2:
         cells = np.concatenate([cells, np.zeros((len(cells), 1), np.int32)], axis=1)
     return cell_random(cells)
 
@@ -145,9 +182,15 @@ def voronoi_smooth_f1(coord, randomness, smoothness, metric="EUCLIDEAN", exponen
 def voronoi_distance_to_edge(coord, randomness):
     """(N,) Cycles' Distance to Edge: from the point to the nearest edge of
     its cell, the plane halfway between the nearest cell point and each of
-    the others around (Euclidean, as Cycles always measures it)."""
+    the others around (Euclidean, as Cycles always measures it). In 1D the
+    nearer of the midpoints between the point's own cell's point and its
+    neighbours'."""
     _floor, local, cell = _cells(coord)
     r = f32(randomness).reshape(-1, 1)
+    if coord.shape[1] == 1:
+        mid, left, right = (o + _jitter(cell + np.int32(o)) * r for o in (0, -1, 1))
+        return np.minimum(np.abs((mid + left) / 2 - local), np.abs((mid + right) / 2 - local))[:, 0] \
+            .astype(np.float32)
     to_points = [o.astype(np.float32) + _jitter(cell + o) * r - local for o in _offsets(coord.shape[1])]
     best = np.full(len(coord), 8.0, np.float32)
     closest = np.zeros_like(coord)
@@ -202,16 +245,22 @@ VORONOI_FEATURES = ("F1", "F2", "SMOOTH_F1", "DISTANCE_TO_EDGE", "N_SPHERE_RADIU
 def voronoi_texture(inp, geom, n, sh):
     props = n.props
     feature, metric = props.get("feature", "F1"), props.get("distance", "EUCLIDEAN")
-    dims = 2 if props.get("voronoi_dimensions", "3D") == "2D" else 3
-    if (props.get("voronoi_dimensions", "3D") not in ("2D", "3D") or feature not in VORONOI_FEATURES
-            or np.any(f32(inp.float("Detail", 0.0)) > 0) or props.get("normalize", False)):
+    dims = {"1D": 1, "2D": 2, "4D": 4}.get(props.get("voronoi_dimensions", "3D"), 3)
+    if (feature not in VORONOI_FEATURES or np.any(f32(inp.float("Detail", 0.0)) > 0)
+            or props.get("normalize", False)):
         sh.warn_once(("voronoi", props.get("voronoi_dimensions"), feature),
-                     f"Voronoi Texture '{n.name}': only 2D and 3D without detail are evaluated; using 3D")
+                     f"Voronoi Texture '{n.name}': detail is not evaluated (one octave)")
         feature = feature if feature in VORONOI_FEATURES else "F1"
-    v = inp.vector("Vector") if inp.linked("Vector") else geom.generated
     scale = np.maximum(f32(inp.float("Scale", 5.0)), 1e-8)
-    p = np.broadcast_to(f32(v), (geom.n, 3)) * f32(inp.float("Scale", 5.0)).reshape(-1, 1)
-    p = np.ascontiguousarray(p[:, :dims], np.float32)
+    factor = f32(inp.float("Scale", 5.0)).reshape(-1, 1)
+    # The W input is the coordinate of 1D Voronoi and the fourth of 4D, scaled alike.
+    w = np.broadcast_to(f32(inp.float("W", 0.0)).reshape(-1, 1) * factor, (geom.n, 1)) if dims in (1, 4) else None
+    if dims == 1:
+        p = np.ascontiguousarray(w, np.float32)
+    else:
+        v = inp.vector("Vector") if inp.linked("Vector") else geom.generated
+        p = np.broadcast_to(f32(v), (geom.n, 3)) * factor
+        p = np.ascontiguousarray(p[:, :dims] if dims < 4 else np.concatenate([p, w], axis=1), np.float32)
     randomness = np.clip(inp.float("Randomness", 1.0), 0, 1)
     exponent = inp.float("Exponent", 0.5)
     zero, zero3 = np.zeros(geom.n, np.float32), np.zeros((geom.n, 3), np.float32)
@@ -226,7 +275,15 @@ def voronoi_texture(inp, geom, n, sh):
         dist, colour, position = voronoi_smooth_f1(p, randomness, smoothness, metric, exponent)
     else:
         dist, colour, position = voronoi_f1(p, randomness, metric, exponent, second=feature == "F2")
-    if dims == 2:       # a 2D position lies in the z = 0 plane
+    inv = 1.0 / scale.reshape(-1, 1)
+    out_w = zero
+    if dims == 1:       # a 1D position is W alone
+        out_w = (position[:, 0] * inv[:, 0]).astype(np.float32)
+        position = np.zeros((geom.n, 3), np.float32)
+    elif dims == 4:
+        out_w = (position[:, 3] * inv[:, 0]).astype(np.float32)
+        position = position[:, :3]
+    elif dims == 2:     # a 2D position lies in the z = 0 plane
         position = np.concatenate([position, np.zeros((geom.n, 1), np.float32)], axis=1)
-    return {"Distance": dist, "Color": colour, "Position": (position / scale.reshape(-1, 1)).astype(np.float32),
-            "W": zero, "Radius": zero}
+    return {"Distance": dist, "Color": colour, "Position": (position * inv).astype(np.float32),
+            "W": out_w, "Radius": zero}
