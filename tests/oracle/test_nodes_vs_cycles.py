@@ -99,10 +99,14 @@ def _noise(dimensions, distortion, kind="FBM"):
     return make
 
 
-def _voronoi(feature, metric, output, dimensions="3D"):
+def _voronoi(feature, metric, output, dimensions="3D", detail=0.0, normalize=False):
     def make(tree):
         v = tree.nodes.new("ShaderNodeTexVoronoi")
         v.feature, v.distance, v.voronoi_dimensions = feature, metric, dimensions
+        v.normalize = normalize
+        for name, value in (("Detail", detail), ("Roughness", 0.6), ("Lacunarity", 2.2)):
+            if name in v.inputs:        # (not on every feature's node)
+                v.inputs[name].default_value = value
         if dimensions in ("1D", "4D"):      # W: the object's x (1D: along x; 4D: (x, y, z, x))
             sep = tree.nodes.new("ShaderNodeSeparateXYZ")
             tree.links.new(tree.nodes.new("ShaderNodeTexCoord").outputs["Object"], sep.inputs[0])
@@ -142,6 +146,13 @@ PATTERNS = {"brick": _brick, "noise_3d": _noise("3D", 0.0), "noise_4d": _noise("
             "voronoi_4d_f1": _voronoi("F1", "EUCLIDEAN", "Color", "4D"),
             "voronoi_4d_f2_position": _voronoi("F2", "MANHATTAN", "Position", "4D"),
             "voronoi_4d_n_sphere_radius": _voronoi("N_SPHERE_RADIUS", "EUCLIDEAN", "Radius", "4D"),
+            "voronoi_detail_f1": _voronoi("F1", "EUCLIDEAN", "Color", detail=2.5),
+            "voronoi_detail_f2": _voronoi("F2", "MANHATTAN", "Distance", "2D", 1.3),
+            "voronoi_detail_f1_normalized": _voronoi("F1", "CHEBYCHEV", "Color", "2D", 1.7, True),
+            "voronoi_detail_smooth_f1_position": _voronoi("SMOOTH_F1", "EUCLIDEAN", "Position", "2D", 2.0),
+            "voronoi_detail_distance_to_edge": _voronoi("DISTANCE_TO_EDGE", "EUCLIDEAN", "Distance", "3D", 1.5,
+                                                        True),
+            "voronoi_detail_1d_f1_distance": _voronoi("F1", "EUCLIDEAN", "Distance", "1D", 3.0, True),
             **{f"noise_{k.lower()}": _noise("3D", 0.0, k) for k in ("MULTIFRACTAL", "HETERO_TERRAIN",
                                                                   "HYBRID_MULTIFRACTAL", "RIDGED_MULTIFRACTAL")}, "wave_bands_diagonal_saw": _wave("BANDS", "DIAGONAL", "SAW", 4.0),
             "wave_bands_y_sine": _wave("BANDS", "Y", "SIN", 0.0),

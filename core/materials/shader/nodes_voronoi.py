@@ -8,8 +8,8 @@ cells around the point; Smooth F1 blends the 5^D around it by a smooth
 minimum. Distance to Edge measures to the nearest plane halfway between the
 nearest point and another; N-Sphere Radius is half the distance from the
 nearest point to its own nearest. 1D (along W) and 4D (the vector and W)
-as Cycles; detail warns and is left out (one octave). All on float32
-arrays, the whole batch at once.
+as Cycles, and Detail's octaves (fractal_voronoi: fBM with lerped
+positions; Normalize). All on float32 arrays, the whole batch at once.
 """
 
 from itertools import product
@@ -240,17 +240,99 @@ def voronoi_n_sphere_radius(coord, randomness):
 VORONOI_FEATURES = ("F1", "F2", "SMOOTH_F1", "DISTANCE_TO_EDGE", "N_SPHERE_RADIUS")
 
 
+def _octaves(detail, roughness):
+    """Per row: whether detail adds nothing (one octave: detail or roughness
+    0), the octaves to run, and the fraction of the last one (Cycles' fBM
+    of Voronoi: octaves 0 .. ceil(detail), the last by detail's remainder)."""
+    single = (detail == 0) | (roughness == 0)
+    return single, int(np.ceil(detail.max())) if len(detail) else 0, detail - np.floor(detail)
+
+
+def _mix(a, b, t):
+    return a + (b - a) * t
+
+
+def fractal_voronoi(octave, coord, detail, roughness, lacunarity, normalize, max_distance):
+    """(distance, colour, position) of Cycles' fractal Voronoi: octave(c) ->
+    (distance (N,), colour (N, 3), position (N, D)) at coordinates c, summed
+    over octaves of growing frequency (lacunarity) and falling amplitude
+    (roughness), positions blended in; detail, roughness, lacunarity (N,);
+    normalize divides by the amplitudes and max_distance."""
+    single, count, remainder = _octaves(detail, roughness)
+    n = len(coord)
+    dist, colour, position = np.zeros(n, np.float32), np.zeros((n, 3), np.float32), np.zeros_like(coord)
+    amplitude, total, scale = np.ones(n, np.float32), np.zeros(n, np.float32), np.ones(n, np.float32)
+    for i in range(count + 1):
+        d, c, p = octave(coord * scale[:, None])
+        if i == 0:
+            first = (d, c, p)
+        whole = i <= detail
+        part = ~whole & (remainder != 0)
+        a = amplitude
+        p = p / scale[:, None]
+        if whole.any():
+            total = np.where(whole, total + a, total)
+            dist = np.where(whole, dist + d * a, dist)
+            colour = np.where(whole[:, None], colour + c * a[:, None], colour)
+            position = np.where(whole[:, None], _mix(position, p, a[:, None]), position)
+        if part.any():
+            r = remainder
+            total = np.where(part, _mix(total, total + a, r), total)
+            dist = np.where(part, _mix(dist, dist + d * a, r), dist)
+            colour = np.where(part[:, None], _mix(colour, colour + c * a[:, None], r[:, None]), colour)
+            position = np.where(part[:, None], _mix(position, _mix(position, p, a[:, None]), r[:, None]), position)
+        scale = np.where(whole, scale * lacunarity, scale)
+        amplitude = np.where(whole, amplitude * roughness, amplitude)
+    total = np.where(single, 1.0, total)
+    dist = np.where(single, first[0], dist)
+    colour = np.where(single[:, None], first[1], colour)
+    position = np.where(single[:, None], first[2], position)
+    if normalize:
+        with np.errstate(divide="ignore", invalid="ignore"):
+            dist = np.nan_to_num(dist / (total * max_distance), nan=0.0, posinf=0.0, neginf=0.0)
+            colour = np.nan_to_num(colour / total[:, None], nan=0.0, posinf=0.0, neginf=0.0)
+    return dist.astype(np.float32), colour.astype(np.float32), position.astype(np.float32)
+
+
+def fractal_distance_to_edge(coord, randomness, detail, roughness, lacunarity, normalize):
+    """(N,) Cycles' fractal Distance to Edge: the nearest edge over octaves,
+    each blended in by its amplitude; normalize divides by the blended
+    largest distance."""
+    single, count, remainder = _octaves(detail, roughness)
+    n = len(coord)
+    largest = (0.5 + 0.5 * np.broadcast_to(f32(randomness), (n,))).astype(np.float32)
+    reach, dist = largest.copy(), np.full(n, 8.0, np.float32)
+    amplitude, scale = np.ones(n, np.float32), np.ones(n, np.float32)
+    for i in range(count + 1):
+        d = voronoi_distance_to_edge(coord * scale[:, None], randomness)
+        if i == 0:
+            first = d
+        whole = i <= detail
+        part = ~whole & (remainder != 0)
+        a = amplitude
+        nearer = _mix(dist, np.minimum(dist, d / scale), a)
+        further = _mix(reach, largest / scale, a)
+        reach = np.where(whole, further, np.where(part, _mix(reach, further, remainder), reach))
+        dist = np.where(whole, nearer, np.where(part, _mix(dist, np.minimum(dist, nearer), remainder), dist))
+        scale = np.where(whole, scale * lacunarity, scale)
+        amplitude = np.where(whole, amplitude * roughness, amplitude)
+    dist = np.where(single, first, dist)
+    if normalize:
+        with np.errstate(divide="ignore", invalid="ignore"):
+            dist = np.nan_to_num(dist / reach, nan=0.0, posinf=0.0, neginf=0.0)
+    return dist.astype(np.float32)
+
+
 @varying
 @node("TEX_VORONOI")
 def voronoi_texture(inp, geom, n, sh):
     props = n.props
     feature, metric = props.get("feature", "F1"), props.get("distance", "EUCLIDEAN")
     dims = {"1D": 1, "2D": 2, "4D": 4}.get(props.get("voronoi_dimensions", "3D"), 3)
-    if (feature not in VORONOI_FEATURES or np.any(f32(inp.float("Detail", 0.0)) > 0)
-            or props.get("normalize", False)):
-        sh.warn_once(("voronoi", props.get("voronoi_dimensions"), feature),
-                     f"Voronoi Texture '{n.name}': detail is not evaluated (one octave)")
-        feature = feature if feature in VORONOI_FEATURES else "F1"
+    if feature not in VORONOI_FEATURES:
+        sh.warn_once(("voronoi", feature), f"Voronoi Texture '{n.name}': feature {feature} is not "
+                                           f"supported; using F1")
+        feature = "F1"
     scale = np.maximum(f32(inp.float("Scale", 5.0)), 1e-8)
     factor = f32(inp.float("Scale", 5.0)).reshape(-1, 1)
     # The W input is the coordinate of 1D Voronoi and the fourth of 4D, scaled alike.
@@ -267,14 +349,28 @@ def voronoi_texture(inp, geom, n, sh):
     if feature == "N_SPHERE_RADIUS":
         return {"Radius": voronoi_n_sphere_radius(p, randomness), "Distance": zero, "Color": zero3,
                 "Position": zero3, "W": zero}
+
+    def column(name, default, lo=None, hi=None):
+        x = np.broadcast_to(f32(inp.float(name, default)).reshape(-1), (geom.n,)).astype(np.float32)
+        return x if lo is None else np.clip(x, lo, hi)
+
+    detail, roughness = column("Detail", 0.0, 0.0, 15.0), column("Roughness", 0.5, 0.0, 1.0)
+    lacunarity, normalize = column("Lacunarity", 2.0), bool(props.get("normalize", False))
     if feature == "DISTANCE_TO_EDGE":
-        return {"Distance": voronoi_distance_to_edge(p, randomness), "Color": zero3, "Position": zero3,
-                "W": zero, "Radius": zero}
-    if feature == "SMOOTH_F1":
-        smoothness = np.clip(f32(inp.float("Smoothness", 1.0)) / 2.0, 0.0, 0.5)
-        dist, colour, position = voronoi_smooth_f1(p, randomness, smoothness, metric, exponent)
+        return {"Distance": fractal_distance_to_edge(p, randomness, detail, roughness, lacunarity, normalize),
+                "Color": zero3, "Position": zero3, "W": zero, "Radius": zero}
+    smoothness = np.clip(f32(inp.float("Smoothness", 1.0)) / 2.0, 0.0, 0.5)
+    if feature == "SMOOTH_F1" and np.any(smoothness != 0):
+        def octave(c):
+            return voronoi_smooth_f1(c, randomness, smoothness, metric, exponent)
     else:
-        dist, colour, position = voronoi_f1(p, randomness, metric, exponent, second=feature == "F2")
+        def octave(c):
+            return voronoi_f1(c, randomness, metric, exponent, second=feature == "F2")
+    half = 0.5 + 0.5 * np.broadcast_to(f32(randomness), (geom.n,)).astype(np.float32)
+    largest = voronoi_distance(np.zeros((geom.n, dims), np.float32), np.repeat(half[:, None], dims, axis=1),
+                               metric, exponent) if dims > 1 else half
+    largest = largest * (2.0 if feature == "F2" else 1.0)
+    dist, colour, position = fractal_voronoi(octave, p, detail, roughness, lacunarity, normalize, largest)
     inv = 1.0 / scale.reshape(-1, 1)
     out_w = zero
     if dims == 1:       # a 1D position is W alone
