@@ -124,6 +124,26 @@ def _voronoi(feature, metric, output, dimensions="3D", detail=0.0, normalize=Fal
     return make
 
 
+def _white_noise(dimensions, output):
+    """White Noise of snapped coordinates (cells 0.3 wide; W: the snapped
+    x), so each cell is one hash and the engines' pixels compare."""
+    def make(tree):
+        wn = tree.nodes.new("ShaderNodeTexWhiteNoise")
+        wn.noise_dimensions = dimensions
+        snap = tree.nodes.new("ShaderNodeVectorMath")
+        snap.operation = "SNAP"
+        snap.inputs[1].default_value = (0.3, 0.3, 0.3)
+        tree.links.new(tree.nodes.new("ShaderNodeTexCoord").outputs["Object"], snap.inputs[0])
+        if "Vector" in wn.inputs:
+            tree.links.new(snap.outputs[0], wn.inputs["Vector"])
+        if dimensions in ("1D", "4D"):
+            sep = tree.nodes.new("ShaderNodeSeparateXYZ")
+            tree.links.new(snap.outputs[0], sep.inputs[0])
+            tree.links.new(sep.outputs["Y" if dimensions == "4D" else "X"], wn.inputs["W"])
+        return wn, wn.outputs[output]
+    return make
+
+
 PATTERNS = {"brick": _brick, "noise_3d": _noise("3D", 0.0), "noise_4d": _noise("4D", 0.0),
             "noise_4d_distorted": _noise("4D", 0.8), "noise_2d_distorted": _noise("2D", 0.8),
             "noise_1d_distorted": _noise("1D", 0.8),
@@ -153,6 +173,10 @@ PATTERNS = {"brick": _brick, "noise_3d": _noise("3D", 0.0), "noise_4d": _noise("
             "voronoi_detail_distance_to_edge": _voronoi("DISTANCE_TO_EDGE", "EUCLIDEAN", "Distance", "3D", 1.5,
                                                         True),
             "voronoi_detail_1d_f1_distance": _voronoi("F1", "EUCLIDEAN", "Distance", "1D", 3.0, True),
+            "white_noise_1d_value": _white_noise("1D", "Value"),
+            "white_noise_2d_color": _white_noise("2D", "Color"),
+            "white_noise_3d_color": _white_noise("3D", "Color"),
+            "white_noise_4d_color": _white_noise("4D", "Color"),
             **{f"noise_{k.lower()}": _noise("3D", 0.0, k) for k in ("MULTIFRACTAL", "HETERO_TERRAIN",
                                                                   "HYBRID_MULTIFRACTAL", "RIDGED_MULTIFRACTAL")}, "wave_bands_diagonal_saw": _wave("BANDS", "DIAGONAL", "SAW", 4.0),
             "wave_bands_y_sine": _wave("BANDS", "Y", "SIN", 0.0),
@@ -185,8 +209,9 @@ def test_texture_pattern_matches_cycles_pixel_by_pixel(addon, pattern):
     coords = tree.nodes.new("ShaderNodeTexCoord")
     tex, color = PATTERNS[pattern](tree)
     if "Vector" in tex.inputs:
-        tree.links.new(coords.outputs["Object"], tex.inputs["Vector"])
-    else:       # 1D noise: along x, through W
+        if not tex.inputs["Vector"].is_linked:
+            tree.links.new(coords.outputs["Object"], tex.inputs["Vector"])
+    elif not tex.inputs["W"].is_linked:       # 1D noise: along x, through W
         sep = tree.nodes.new("ShaderNodeSeparateXYZ")
         tree.links.new(coords.outputs["Object"], sep.inputs[0])
         tree.links.new(sep.outputs["X"], tex.inputs["W"])
