@@ -5,8 +5,10 @@ engines. Cycles reflects with the dielectric layer by the exact Fresnel curve
 of its IOR (core/bsdfs/fresnel.py); with Schlick's approximation, whose
 hemispherical mean is 5.8 % lower at IOR 1.45, these spheres rendered
 0.89-0.92 of Cycles. Rough glass spheres, white and tinted, show its
-multiple-scattering compensation (core/bsdfs/glass_albedo.py), and a rough
-gold metal the GGX lobe's (core/bsdfs/microfacet_albedo.py). Each sphere's
+multiple-scattering compensation (core/bsdfs/glass_albedo.py), a rough
+gold metal the GGX lobe's (core/bsdfs/microfacet_albedo.py), and two
+Metallic BSDF nodes (F82 Tint, physical conductor) their Fresnel's mean
+(2.6 % and 2.2 % bright with Schlick's curve to one). Each sphere's
 mean must agree within 2 % (a half-metallic mixture within 4.5 %, an
 approximation), and every sphere must be finite."""
 
@@ -45,6 +47,12 @@ SPHERES = {             # name: Principled inputs on a black base
     # A Glossy BSDF has no Fresnel: its colour weighs a lobe that reflects
     # all it receives, so all its lost energy is put back.
     "glossy_node_rough0.8": {"node": "ShaderNodeBsdfGlossy", "Color": (0.8, 0.4, 0.1, 1), "Roughness": 0.8},
+    # The Metallic BSDF node: F82 Tint (its default colours) and a
+    # physical conductor (its default complex IOR), by Schlick's curve from
+    # their normal reflectance.
+    "metallic_node_f82_rough0.3": {"node": "ShaderNodeBsdfMetallic", "Roughness": 0.3},
+    "metallic_node_conductor_rough0.6": {"node": "ShaderNodeBsdfMetallic", "Roughness": 0.6,
+                                         "props": {"fresnel_type": "PHYSICAL_CONDUCTOR"}},
 }
 TOLERANCE = {"half_metal_rough0.7": 0.045}
 
@@ -69,10 +77,13 @@ def sphere_scene():
         bsdf.inputs["Base Color"].default_value = (0.0, 0.0, 0.0, 1.0)
         inputs = dict(inputs)
         kind = inputs.pop("node", None)
+        props = inputs.pop("props", {})
         if kind is not None:        # another BSDF node in the Principled's place
             tree.nodes.remove(bsdf)
             bsdf = tree.nodes.new(kind)
             tree.links.new(bsdf.outputs[0], tree.nodes["Material Output"].inputs["Surface"])
+        for key, value in props.items():
+            setattr(bsdf, key, value)
         for key, value in inputs.items():
             bsdf.inputs[key].default_value = value
         obj.data.materials.append(mat)

@@ -175,6 +175,71 @@ def glossy_bsdf(inp, geom, n, sh):
                           spec_rough=np.clip(inp.float("Roughness", 0.5), 0, 1), spec_ss=_single_scatter(inp))}
 
 
+@node("BSDF_METALLIC")
+def metallic_bsdf(inp, geom, n, sh):
+    """The Metallic BSDF node (Blender 4.0+): a GGX conductor whose normal
+    reflectance is the Base Color (F82 Tint) or, for a Physical Conductor,
+    that of its complex IOR (n + ik per channel). The lobes here rise by
+    Schlick's curve from that reflectance to an edge colour chosen so that
+    the curve's cosine-weighted mean is Cycles' Fresnel's (conductor_edge):
+    Cycles' F82 tint dips below Schlick's curve at grazing angles, and so
+    does the exact conductor Fresnel. (Anisotropy is drawn isotropic.)"""
+    if inp.prop("fresnel_type", "F82") == "PHYSICAL_CONDUCTOR":
+        eta = np.maximum(inp.vector("IOR", (2.757, 2.513, 2.231)), 0.0)
+        k = np.maximum(inp.vector("Extinction", (3.867, 3.404, 3.009)), 0.0)
+        f0, edge = conductor_edge(eta, k)
+    else:
+        f0 = np.clip(inp.color("Base Color", (0.617, 0.577, 0.540)), 0, 1)
+        edge = f82_edge(f0, np.clip(inp.color("Edge Tint", (0.695, 0.726, 0.770)), 0, 1))
+    return {"BSDF": _bsdf(inp, geom, specular=f32(f0), spec_edge=f32(edge),
+                          spec_rough=np.clip(inp.float("Roughness", 0.5), 0, 1), spec_ss=_single_scatter(inp))}
+
+
+# Schlick's curve f0 + (e - f0)(1 - mu)^5 has the cosine-weighted mean
+# (2 mu dmu over [0, 1]) f0 + (e - f0) / 21.
+_SCHLICK_MEAN = 1.0 / 21.0
+_MU, _MU_W = np.polynomial.legendre.leggauss(32)
+_MU, _MU_W = 0.5 * (_MU + 1.0), 0.5 * _MU_W
+
+
+def f82_edge(f0, tint):
+    """The edge colour of Schlick's curve with the mean of Cycles' F82-tint
+    Fresnel: Schlick's curve minus b mu (1 - mu)^6, b making the curve at
+    mu = 1/7 the tint times Schlick's there; that term's mean is b / 126."""
+    mu = 1.0 / 7.0
+    at = f0 + (1.0 - f0) * (1.0 - mu) ** 5
+    b = at * (1.0 - tint) / (mu * (1.0 - mu) ** 6)
+    return 1.0 - b / 6.0
+
+
+def conductor_fresnel(cos, eta, k):
+    """Unpolarised Fresnel reflectance of a conductor of complex IOR eta + ik
+    at cosines ``cos`` (broadcasting)."""
+    c2 = cos * cos
+    s2 = 1.0 - c2
+    t0 = eta * eta - k * k - s2
+    ab = np.sqrt(t0 * t0 + 4.0 * eta * eta * k * k)
+    a = np.sqrt(np.maximum(0.5 * (ab + t0), 0.0))
+    t1 = ab + c2
+    t2 = 2.0 * a * cos
+    rs = (t1 - t2) / np.maximum(t1 + t2, 1e-12)
+    t3 = c2 * ab + s2 * s2
+    t4 = t2 * s2
+    rp = rs * (t3 - t4) / np.maximum(t3 + t4, 1e-12)
+    return 0.5 * (rs + rp)
+
+
+def conductor_edge(eta, k):
+    """(f0, edge): a conductor's normal reflectance and the edge colour of
+    Schlick's curve with its Fresnel's cosine-weighted mean (eta, k:
+    (..., 3))."""
+    eta, k = f32(eta)[..., None], f32(k)[..., None]
+    f = conductor_fresnel(_MU.astype(np.float32), eta, k)
+    mean = (f * (2.0 * _MU * _MU_W).astype(np.float32)).sum(axis=-1)
+    f0 = conductor_fresnel(np.float32(1.0), eta, k)[..., 0]
+    return f0, np.clip(f0 + (mean - f0) / _SCHLICK_MEAN, 0.0, 1.0)
+
+
 @node("BSDF_SHEEN")
 def sheen_bsdf(inp, geom, n, sh):
     """The Sheen BSDF node (Velvet before Blender 4.0): Microfiber is the
