@@ -6,9 +6,10 @@ of its IOR (core/bsdfs/fresnel.py); with Schlick's approximation, whose
 hemispherical mean is 5.8 % lower at IOR 1.45, these spheres rendered
 0.89-0.92 of Cycles. Rough glass spheres, white and tinted, show its
 multiple-scattering compensation (core/bsdfs/glass_albedo.py), a rough
-gold metal the GGX lobe's (core/bsdfs/microfacet_albedo.py), and two
-Metallic BSDF nodes (F82 Tint, physical conductor) their Fresnel's mean
-(2.6 % and 2.2 % bright with Schlick's curve to one). Each sphere's
+gold metal the GGX lobe's (core/bsdfs/microfacet_albedo.py), and a metal
+of tinted Specular Tint and two Metallic BSDF nodes (F82 Tint, physical
+conductor) their Fresnel's mean (3.8 %, 2.6 % and 2.2 % bright with
+Schlick's curve to one). Each sphere's
 mean must agree within 2 % (a half-metallic mixture within 4.5 %, an
 approximation), and every sphere must be finite."""
 
@@ -47,6 +48,9 @@ SPHERES = {             # name: Principled inputs on a black base
     # A Glossy BSDF has no Fresnel: its colour weighs a lobe that reflects
     # all it receives, so all its lost energy is put back.
     "glossy_node_rough0.8": {"node": "ShaderNodeBsdfGlossy", "Color": (0.8, 0.4, 0.1, 1), "Roughness": 0.8},
+    # A metal whose Specular Tint is Cycles' F82 tint of its edge.
+    "tinted_metal_rough0.4": {"Base Color": (0.9, 0.6, 0.2, 1), "Metallic": 1.0, "Roughness": 0.4,
+                              "Specular Tint": (0.4, 0.7, 1.0, 1)},
     # The Metallic BSDF node: F82 Tint (its default colours) and a
     # physical conductor (its default complex IOR), by Schlick's curve from
     # their normal reflectance.

@@ -92,7 +92,8 @@ def principled(inp, geom, n, sh):
     f0_untinted = np.minimum(_f0_from_ior(ior_in) * 2 * level, 1.0)
     f0_d = _c(f0_untinted) * spec_tint
     # As Cycles: a base colour above one brightens the diffuse part only; the
-    # metal's f0 and the glass's tint take it clamped to one.
+    # metal's f0 and the glass's tint take it clamped to one. The metal's
+    # Specular Tint is its F82 tint (f82_edge: its edge by the curve's mean).
     clamped = np.minimum(base, 1.0)
     specular = _c(metallic) * clamped + _c(dielectric * (1 - trans)) * f0_d
     diffuse = _c(dielectric * (1 - trans)) * base      # under the specular layer
@@ -112,7 +113,7 @@ def principled(inp, geom, n, sh):
     layer = _c(dielectric * (1 - trans))
     lobes = Closure.bsdf(1.0, None, layered=diffuse * below, layer_f0=f0_d.mean(axis=-1),
                          specular=specular * below,
-                         spec_edge=(_c(metallic) + layer) * np.ones((1, 3), np.float32) * below,
+                         spec_edge=(_c(metallic) * f82_edge(clamped, np.minimum(spec_tint, 1.0)) + layer) * below,
                          spec_exact=layer * (1 - f0_d) * below,
                          spec_ior=layer_ior(f0_untinted, ior_in),
                          spec_rough=rough, spec_ss=_single_scatter(inp), transmission=transmission * below,
