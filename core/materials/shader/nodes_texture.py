@@ -37,14 +37,110 @@ def _lookup(sh, n, uv, unassociate=False):
 @varying
 @node("TEX_IMAGE")
 def image_texture(inp, geom, n, sh):
+    """Cycles' Image Texture: Flat projection looks the vector's (u, v) up;
+    Box blends three planar lookups by the object-space normal
+    (box_weights); Sphere and Tube wrap the vector, remapped from [0, 1]^3
+    to [-1, 1]^3, around the object's z axis."""
     uv = inp.vector("Vector") if inp.linked("Vector") else geom.uv("")
     uv = np.broadcast_to(f32(uv), (geom.n, 3))
     projection = n.props.get("projection", "FLAT")
-    if projection != "FLAT":
+    alpha_read = (sh.index.get(id(n)), "Alpha") in sh.read_outputs
+    if projection == "BOX" and hasattr(geom, "object_vector"):
+        return _box_lookup(sh, n, geom, uv, float(n.props.get("projection_blend", 0.0)), alpha_read)
+    if projection == "SPHERE":
+        uv = map_to_sphere((uv - 0.5) * 2.0)
+    elif projection == "TUBE":
+        uv = map_to_tube((uv - 0.5) * 2.0)
+    elif projection != "FLAT":
         sh.warn_once(("projection", projection),
                      f"image texture projection {projection} is not supported; using Flat")
-    alpha_read = (sh.index.get(id(n)), "Alpha") in sh.read_outputs
     color, alpha = _lookup(sh, n, uv, unassociate=alpha_read)
+    return {"Color": color, "Alpha": alpha}
+
+
+def map_to_sphere(d):
+    """(N, 3) Cycles' sphere mapping of vectors (N, 3): the longitude around
+    z (from +y) and the latitude from +z, each in [0, 1] (third column zero)."""
+    d = f32(d)
+    x, y, z = d[:, 0], d[:, 1], d[:, 2]
+    length = np.sqrt(x * x + y * y + z * z)
+    on = length > 0
+    u = np.where((x == 0) & (y == 0), 0.0, (1.0 - np.arctan2(x, y) / np.pi) / 2.0)
+    v = 1.0 - np.arccos(np.clip(z / np.where(on, length, 1.0), -1.0, 1.0)) / np.pi
+    return np.stack([np.where(on, u, 0.0), np.where(on, v, 0.0), np.zeros_like(u)], axis=1).astype(np.float32)
+
+
+def map_to_tube(d):
+    """(N, 3) Cycles' tube mapping: the angle around z (from +y) and the
+    height, z from [-1, 1] to [0, 1] (third column zero)."""
+    d = f32(d)
+    x, y, z = d[:, 0], d[:, 1], d[:, 2]
+    length = np.sqrt(x * x + y * y)
+    on = length > 0
+    safe = np.where(on, length, 1.0)
+    u = (1.0 - np.arctan2(x / safe, y / safe) / np.pi) / 2.0
+    v = (z + 1.0) / 2.0
+    return np.stack([np.where(on, u, 0.0), np.where(on, v, 0.0), np.zeros_like(u)], axis=1).astype(np.float32)
+
+
+def box_weights(normal, blend):
+    """(N, 3) Cycles' Box projection weights of the x, y and z planar
+    lookups from object-space normals (N, 3): one side where the normal is
+    near an axis (the corners of the triangle of |n| / sum |n|), two sides
+    blended along the edges between and three in the middle, by the
+    Projection Blend."""
+    a = np.abs(f32(normal))
+    a = a / np.maximum(a.sum(axis=1, keepdims=True), 1e-30)
+    x, y, z = a[:, 0], a[:, 1], a[:, 2]
+    limit = 0.5 * (1.0 + blend)
+    w = np.zeros_like(a)
+    corner_x = (x > limit * (x + y)) & (x > limit * (x + z))
+    corner_y = ~corner_x & (y > limit * (x + y)) & (y > limit * (y + z))
+    corner_z = ~corner_x & ~corner_y & (z > limit * (x + z)) & (z > limit * (y + z))
+    rest = ~(corner_x | corner_y | corner_z)
+    w[corner_x, 0] = 1.0
+    w[corner_y, 1] = 1.0
+    w[corner_z, 2] = 1.0
+    if blend <= 0:
+        w[rest, 0] = 1.0        # (no valid choice: one side, as Cycles)
+        return w
+
+    def ramp(t):
+        return np.clip((t - 0.5 * (1.0 - blend)) / blend, 0.0, 1.0)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        xy = rest & (z < (1.0 - limit) * (y + x))
+        yz = rest & ~xy & (x < (1.0 - limit) * (y + z))
+        xz = rest & ~xy & ~yz & (y < (1.0 - limit) * (x + z))
+        mid = rest & ~xy & ~yz & ~xz
+        t = ramp(x / (x + y))
+        w[xy, 0], w[xy, 1] = t[xy], 1.0 - t[xy]
+        t = ramp(y / (y + z))
+        w[yz, 1], w[yz, 2] = t[yz], 1.0 - t[yz]
+        t = ramp(x / (x + z))
+        w[xz, 0], w[xz, 2] = t[xz], 1.0 - t[xz]
+        w[mid] = ((2.0 - limit) * a[mid] + (limit - 1.0)) / (2.0 * limit - 1.0)
+    return w
+
+
+def _box_lookup(sh, n, geom, co, blend, unassociate):
+    """Box projection: the three planar lookups (mapped so that no side is
+    mirrored, as Cycles maps them) weighed by box_weights."""
+    normal = geom.object_vector(geom.normal)
+    w = box_weights(normal, max(0.0, min(1.0, blend)))
+    x, y, z = co[:, 0], co[:, 1], co[:, 2]
+    sides = (np.stack([np.where(normal[:, 0] < 0, 1.0 - y, y), z], axis=1),
+             np.stack([np.where(normal[:, 1] > 0, 1.0 - x, x), z], axis=1),
+             np.stack([np.where(normal[:, 2] > 0, 1.0 - y, y), x], axis=1))
+    color = np.zeros((geom.n, 3), np.float32)
+    alpha = np.zeros(geom.n, np.float32)
+    for k, uv in enumerate(sides):
+        rows = np.nonzero(w[:, k] > 0)[0]
+        if len(rows) == 0:
+            continue
+        uv3 = np.concatenate([uv[rows], np.zeros((len(rows), 1), np.float32)], axis=1)
+        c, a = _lookup(sh, n, uv3, unassociate=unassociate)
+        color[rows] += c * w[rows, k, None]
+        alpha[rows] += a * w[rows, k]
     return {"Color": color, "Alpha": alpha}
 
 
