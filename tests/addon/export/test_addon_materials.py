@@ -82,7 +82,7 @@ def test_shader_nodes_read(addon):
 
 
 @pytest.mark.parametrize("node_type, label", [("ShaderNodeBsdfToon", "Toon BSDF"),
-                                              ("ShaderNodeBsdfMetallic", "Metallic BSDF")])
+                                              ("ShaderNodeBsdfRayPortal", "Ray Portal BSDF")])
 def test_unsupported_node_warns_once(addon, node_type, label):
     """An unknown BSDF renders as a grey diffuse surface (of its Color input,
     where it has one), with one warning naming the material and the node."""
