@@ -85,6 +85,30 @@ def _float_bits(v):
     return np.asarray(v, np.float32).view(_U32)
 
 
+_U32_MAX = np.float32(4294967295.0)
+
+
+def hash_floats(*columns):
+    """Cycles' hash_floatN_to_float of float32 columns (N,) each (N = 1 to
+    4): lookup3 of their bits, in [0, 1]."""
+    bits = [np.ascontiguousarray(np.asarray(c, np.float32)).view(_U32) for c in columns]
+    h = (hash_uint, hash_uint2, hash_uint3, hash_uint4)[len(bits) - 1](*bits)
+    return (h.astype(np.float32) / _U32_MAX).astype(np.float32)
+
+
+def hash_floats_to_colour(columns):
+    """(N, 3) Cycles' hash_floatN_to_float3 of N float32 columns: the hash of
+    the columns, then (N < 4) of the columns with 1 and with 2 appended, or
+    (4D) of the columns reordered (z, x, w, y) and (w, z, y, x)."""
+    if len(columns) == 4:
+        x, y, z, w = columns
+        parts = [hash_floats(x, y, z, w), hash_floats(z, x, w, y), hash_floats(w, z, y, x)]
+    else:
+        salt = [np.full(len(columns[0]), k, np.float32) for k in (1.0, 2.0)]
+        parts = [hash_floats(*columns), hash_floats(*columns, salt[0]), hash_floats(*columns, salt[1])]
+    return np.stack(parts, axis=1)
+
+
 def random_offset(seed, dims=3):
     """Cycles' random_float3_offset (random_float4_offset with dims 4): a
     fixed shift in [100, 200)^dims per seed."""

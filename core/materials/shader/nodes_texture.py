@@ -9,7 +9,7 @@ position), Environment Texture the ray direction. Image lookups (filtering, exte
 import numpy as np
 
 from .evaluate import f32, node, varying
-from .nodes_noise import fbm, hash_uint, hash_uint2, hash_uint3, hash_uint4
+from .nodes_noise import fbm, hash_floats, hash_floats_to_colour
 
 MAGENTA = np.array([1.0, 0.0, 1.0], np.float32)
 
@@ -370,34 +370,6 @@ def sky_texture(inp, geom, n, sh):
     return {"Color": f32(np.where((z >= 0)[:, None], sky, ground))}
 
 
-_U32_MAX = np.float32(4294967295.0)
-
-
-def _hash_floats(*columns):
-    """Cycles' hash_floatN_to_float of float32 columns (N,) each (N = 1 to
-    4): lookup3 of their bits, in [0, 1]."""
-    bits = [np.ascontiguousarray(f32(c)).view(np.uint32) for c in columns]
-    h = (hash_uint, hash_uint2, hash_uint3, hash_uint4)[len(bits) - 1](*bits)
-    return (h.astype(np.float32) / _U32_MAX).astype(np.float32)
-
-
-def _salted(columns, salt):
-    return list(columns) + [np.full(len(columns[0]), salt, np.float32)]
-
-
-def white_noise_colour(columns):
-    """Cycles' hash_floatN_to_float3 of N float32 columns: the hash of the
-    columns, then (N < 4) of the columns with 1 and with 2 appended, or (4D)
-    of the columns reordered (z, x, w, y) and (w, z, y, x)."""
-    if len(columns) == 4:
-        x, y, z, w = columns
-        parts = [_hash_floats(x, y, z, w), _hash_floats(z, x, w, y), _hash_floats(w, z, y, x)]
-    else:
-        parts = [_hash_floats(*columns), _hash_floats(*_salted(columns, 1.0)),
-                 _hash_floats(*_salted(columns, 2.0))]
-    return np.stack(parts, axis=1)
-
-
 @varying
 @node("TEX_WHITE_NOISE")
 def white_noise_texture(inp, geom, n, sh):
@@ -410,4 +382,4 @@ def white_noise_texture(inp, geom, n, sh):
     columns = {1: [w], 2: [v[:, 0], v[:, 1]], 3: [v[:, 0], v[:, 1], v[:, 2]],
                4: [v[:, 0], v[:, 1], v[:, 2], w]}[dims]
     columns = [np.ascontiguousarray(c, np.float32) for c in columns]
-    return {"Value": _hash_floats(*columns), "Color": white_noise_colour(columns)}
+    return {"Value": hash_floats(*columns), "Color": hash_floats_to_colour(columns)}

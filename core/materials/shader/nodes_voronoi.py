@@ -17,7 +17,7 @@ from itertools import product
 import numpy as np
 
 from .evaluate import f32, node, varying
-from .nodes_noise import hash_uint, hash_uint2
+from .nodes_noise import hash_floats, hash_floats_to_colour
 
 _PCG_MUL, _PCG_ADD = np.int32(1664525), np.int32(1013904223)
 
@@ -26,75 +26,68 @@ def _to_unit(v):
     return ((v & np.int32(0x7FFFFFFF)).astype(np.float32) * np.float32(1.0 / 0x7FFFFFFF)).astype(np.float32)
 
 
-def cell_random(cells):
-    """Cycles' hash_int3_to_float3 of integer cells (N, 3): the PCG 3D hash
-    ("Hash Functions for GPU Rendering", JCGT 2020) on signed 32-bit
-    integers, as (N, 3) in [0, 1]."""
+def _pcg(cells, mix):
+    """The PCG hashes of "Hash Functions for GPU Rendering" (JCGT 2020) on
+    signed 32-bit integer cells (N, D), as Cycles spells them: a linear
+    step, ``mix`` (the D-dimensional cross terms, in place), a shift, and
+    ``mix`` again; (N, D) in [0, 1]."""
     v = np.ascontiguousarray(cells, np.int32).copy()
     with np.errstate(over="ignore"):
         v = v * _PCG_MUL + _PCG_ADD
-        for _ in range(2):
-            v[:, 0] += v[:, 1] * v[:, 2]
-            v[:, 1] += v[:, 2] * v[:, 0]
-            v[:, 2] += v[:, 0] * v[:, 1]
-            if _ == 0:
-                v ^= v >> np.int32(16)
+        mix(v)
+        v ^= v >> np.int32(16)
+        mix(v)
     return _to_unit(v)
+
+
+def _mix2(v):
+    v[:, 0] += v[:, 1] * _PCG_MUL
+    v[:, 1] += v[:, 0] * _PCG_MUL
+
+
+def _mix3(v):
+    v[:, 0] += v[:, 1] * v[:, 2]
+    v[:, 1] += v[:, 2] * v[:, 0]
+    v[:, 2] += v[:, 0] * v[:, 1]
+
+
+def _mix4(v):
+    v[:, 0] += v[:, 1] * v[:, 3]
+    v[:, 1] += v[:, 2] * v[:, 0]
+    v[:, 2] += v[:, 0] * v[:, 1]
+    v[:, 3] += v[:, 1] * v[:, 2]
+
+
+def cell_random(cells):
+    """Cycles' hash_int3_to_float3 of integer cells (N, 3): the PCG 3D hash."""
+    return _pcg(cells, _mix3)
 
 
 def cell_random2(cells):
     """Cycles' hash_int2_to_float2 of integer cells (N, 2): the PCG 2D hash."""
-    v = np.ascontiguousarray(cells, np.int32).copy()
-    with np.errstate(over="ignore"):
-        v = v * _PCG_MUL + _PCG_ADD
-        for _ in range(2):
-            v[:, 0] += v[:, 1] * _PCG_MUL
-            v[:, 1] += v[:, 0] * _PCG_MUL
-            if _ == 0:
-                v ^= v >> np.int32(16)
-    return _to_unit(v)
+    return _pcg(cells, _mix2)
 
 
 def cell_random4(cells):
     """Cycles' hash_int4_to_float4 of integer cells (N, 4): the PCG 4D hash."""
-    v = np.ascontiguousarray(cells, np.int32).copy()
-    with np.errstate(over="ignore"):
-        v = v * _PCG_MUL + _PCG_ADD
-        for _ in range(2):
-            v[:, 0] += v[:, 1] * v[:, 3]
-            v[:, 1] += v[:, 2] * v[:, 0]
-            v[:, 2] += v[:, 0] * v[:, 1]
-            v[:, 3] += v[:, 1] * v[:, 2]
-            if _ == 0:
-                v ^= v >> np.int32(16)
-    return _to_unit(v)
-
-
-_INV_U32 = np.float32(1.0 / 0xFFFFFFFF)
-
-
-def _cell_random1(cells, salt=None):
-    """Cycles' hash_float_to_float of 1D cells (N, 1) (Jenkins' lookup3 of the
-    float's bits), or with ``salt`` hash_float2_to_float(cell, salt)."""
-    bits = cells[:, 0].astype(np.float32).view(np.uint32)
-    h = hash_uint(bits) if salt is None else hash_uint2(bits, np.full(len(bits), np.float32(salt)).view(np.uint32))
-    return (h.astype(np.float32) * _INV_U32).astype(np.float32)
+    return _pcg(cells, _mix4)
 
 
 def _jitter(cells):
-    """Each cell's point, in the cell's own [0, 1]^D."""
+    """Each cell's point, in the cell's own [0, 1]^D (1D cells: Cycles'
+    hash_float_to_float of the cell)."""
     dims = cells.shape[1]
     if dims == 1:
-        return _cell_random1(cells)[:, None]
+        return hash_floats(cells[:, 0].astype(np.float32))[:, None]
     return {2: cell_random2, 4: cell_random4}.get(dims, cell_random)(cells)
 
 
 def _colour(cells):
     """Each cell's colour (N, 3): 2D cells hash as (x, y, 0), 4D cells by
-    the first three of their hash, 1D cells by three salts of theirs."""
+    the first three of their hash, 1D cells as Cycles' hash_float_to_float3."""
     dims = cells.shape[1]
     if dims == 1:
-        return np.stack([_cell_random1(cells), _cell_random1(cells, 1.0), _cell_random1(cells, 2.0)], axis=1)
+        return hash_floats_to_colour([cells[:, 0].astype(np.float32)])
     if dims == 4:
         return cell_random4(cells)[:, :3]
     if dims == 2:
